@@ -1,0 +1,69 @@
+"""Parameters of the method, with defaults shared by the core, the CLI and the Blender UI."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+
+__all__ = ["SkeletonParams", "SOLVERS"]
+
+#: "paper": gradient descent with exact line search, stopped as in eqs. 30-31 (reproduces the
+#: paper). "lm": Levenberg-Marquardt on the 4-per-joint normal equations (converges).
+SOLVERS = ("paper", "lm")
+
+
+@dataclass
+class SkeletonParams:
+    """Parameters of :func:`curveskel_addon.core.skeletonize`.
+
+    Attributes
+    ----------
+    spacing : float
+        Contour spacing as a fraction of each component's bounding-box diagonal. Smaller gives
+        more joints. Refined automatically where a handle would otherwise be lost.
+    solver : str
+        One of :data:`SOLVERS`.
+    max_iterations : int
+        Upper bound on optimisation iterations.
+    tolerance : float
+        Stop when one iteration lowers E by less than ``tolerance * E0`` (eq. 30-31: 1e-3).
+    seed : int
+        Seed of the random first vertex of the pole search; results are reproducible.
+    area_weighted : bool
+        Weight each vertex by its Voronoi area (surface integral of eq. 8 instead of a vertex sum).
+    refit_mapping : bool
+        Re-fit sigma (each vertex's bone and t) between solver steps.
+    prune : float
+        Remove a leaf branch whose removal raises E by less than ``prune`` times what the branch
+        explains (0 disables).
+    simplify : float
+        Merge a joint of degree 2 when E barely changes (relative threshold, 0 disables).
+    candidates : int
+        Number of first approximations (poles / spacings) tried; the one of lowest E is kept.
+    """
+
+    spacing: float = 0.04
+    solver: str = "lm"
+    max_iterations: int = 100
+    tolerance: float = 1e-3
+    seed: int = 0
+    area_weighted: bool = True
+    refit_mapping: bool = True
+    prune: float = 0.0
+    simplify: float = 0.0
+    candidates: int = 1
+
+    @classmethod
+    def paper(cls, **overrides) -> "SkeletonParams":
+        """The method exactly as the paper describes it (vertex sum, fixed sigma, gradient descent)."""
+        base = dict(solver="paper", area_weighted=False, refit_mapping=False, prune=0.0,
+                    simplify=0.0, candidates=1, max_iterations=1000)
+        base.update(overrides)
+        return cls(**base)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "SkeletonParams":
+        names = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in d.items() if k in names})
