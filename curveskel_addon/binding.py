@@ -1,0 +1,323 @@
+"""Bind a mesh to a curveskel armature: one vertex group per deforming bone + an Armature modifier.
+
+Binding is the one change curveskel makes to the user's mesh. What it adds is tracked on the mesh
+object (``curveskel_groups``: the vertex groups it made, ``curveskel_modifier``: its modifier), so
+a re-bind replaces exactly those and leaves the user's other groups and modifiers alone.
+
+Weights come from ``core.skin_weights`` (method "MAPPING") and are written through a bmesh
+deform layer (no per-vertex operator call), or from Blender's heat weights ("HEAT",
+``parent_set(type='ARMATURE_AUTO')``) for comparison.
+"""
+
+from __future__ import annotations
+
+import time
+
+import bmesh
+import bpy
+import numpy as np
+
+from .armature import is_curveskel_armature, layout_of
+from .core.errors import CurveSkelError
+from .core.skin_weights import project_on_bones, skin_weights
+
+__all__ = ["bind_mesh", "unbind_mesh", "write_weights", "METHODS", "GROUPS_KEY", "MODIFIER_KEY",
+           "MODIFIER_NAME", "HEAT_SLOW_VERTICES"]
+
+METHODS = ("MAPPING", "HEAT")
+GROUPS_KEY = "curveskel_groups"
+MODIFIER_KEY = "curveskel_modifier"
+ARMATURE_KEY = "curveskel_armature"
+MODIFIER_NAME = "CurveSkel Armature"
+#: Above this many vertices heat weights take seconds to minutes (about 15 s at 50k).
+HEAT_SLOW_VERTICES = 10_000
+
+
+def _vertices(me) -> np.ndarray:
+    co = np.empty(len(me.vertices) * 3, dtype=np.float32)
+    me.vertices.foreach_get("co", co)
+    return co.reshape(-1, 3).astype(np.float64)
+
+
+def unbind_mesh(mesh_obj) -> int:
+    """Remove the vertex groups and the modifier a previous bind made; return the modifier's index
+    in the stack (0 when there was none). The user's own groups and modifiers are not touched."""
+    index = 0
+    mod_name = mesh_obj.get(MODIFIER_KEY)
+    if mod_name:
+        mod = mesh_obj.modifiers.get(mod_name)
+        if mod is not None and mod.type == 'ARMATURE':
+            index = list(mesh_obj.modifiers).index(mod)
+            mesh_obj.modifiers.remove(mod)
+    for g in list(mesh_obj.get(GROUPS_KEY, [])):
+        vg = mesh_obj.vertex_groups.get(g)
+        if vg is not None:
+            mesh_obj.vertex_groups.remove(vg)
+    for key in (GROUPS_KEY, MODIFIER_KEY, ARMATURE_KEY):
+        if key in mesh_obj:
+            del mesh_obj[key]
+    return index
+
+
+def write_weights(mesh_obj, group_names, index, weight) -> None:
+    """Write (n, k) weights into new vertex groups ``group_names`` through a bmesh deform layer.
+
+    Parameters
+    ----------
+    mesh_obj : bpy.types.Object
+        A mesh object in object mode.
+    group_names : list of str
+        One per column value of ``index``; groups are created in this order.
+    index : (n, k) int
+        Position in ``group_names`` of each influence, -1 for none.
+    weight : (n, k) float
+    """
+    me = mesh_obj.data
+    base = len(mesh_obj.vertex_groups)
+    for g in group_names:
+        vg = mesh_obj.vertex_groups.new(name=g)
+        if vg.name != g:
+            raise CurveSkelError(f"vertex group name '{g}' is taken")
+    k = int((index >= 0).sum(axis=1).max()) if len(index) else 0
+    gidx = np.where(index[:, :k] >= 0, index[:, :k] + base, -1)
+    bm = bmesh.new()
+    try:
+        bm.from_mesh(me)
+        dl = bm.verts.layers.deform.verify()
+        if k == 1 or k == 2:
+            # one or two influences (the skin_weights case): a flat loop, no inner zip
+            g0, w0 = gidx[:, 0].tolist(), weight[:, 0].tolist()
+            if k == 1:
+                for v, a, wa in zip(bm.verts, g0, w0):
+                    v[dl][a] = wa
+            else:
+                g1, w1 = gidx[:, 1].tolist(), weight[:, 1].tolist()
+                for v, a, wa, b, wb in zip(bm.verts, g0, w0, g1, w1):
+                    d = v[dl]
+                    d[a] = wa
+                    if b >= 0:
+                        d[b] = wb
+        elif k > 2:
+            for v, gi, wi in zip(bm.verts, gidx.tolist(), weight[:, :k].tolist()):
+                d = v[dl]
+                for g, w in zip(gi, wi):
+                    if g >= 0:
+                        d[g] = w
+        bm.to_mesh(me)
+    finally:
+        bm.free()
+    me.update()
+
+
+def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, method: str = "MAPPING") -> dict:
+    """Skin ``mesh_obj`` to the curveskel armature ``arm_obj``.
+
+    Parameters
+    ----------
+    mesh_obj : bpy.types.Object
+        Mesh object in object mode.
+    arm_obj : bpy.types.Object
+        Armature made by :func:`armature.build_armature`.
+    skeleton : Skeleton, optional
+        Skeleton the armature was built from; its mapping is used when it has one entry per mesh
+        vertex. Otherwise (or when None) every vertex is mapped to the closest point on the bones.
+    blend : float in [0, 0.5]
+        Blend width at joints, as a fraction of bone length (MAPPING only).
+    method : {"MAPPING", "HEAT"}
+        Skeleton-mapping weights (default), or Blender's heat weights (slow on large meshes).
+
+    Returns
+    -------
+    dict
+        ``method``, ``vertices``, ``groups``, ``mapping`` ("skeleton" or "closest"),
+        ``max_influences``, ``unweighted`` (vertices with no weight), ``seconds``,
+        ``weights_seconds``, ``warnings`` (list of str).
+
+    Raises
+    ------
+    CurveSkelError
+        Wrong object types, the mesh in edit mode, a vertex group name already used by the user,
+        or heat weighting failing.
+    """
+    t0 = time.perf_counter()
+    method = method.upper()
+    if method not in METHODS:
+        raise CurveSkelError(f"unknown weight method {method!r}; choose one of {', '.join(METHODS)}")
+    if mesh_obj is None or mesh_obj.type != 'MESH':
+        raise CurveSkelError("bind: the object to bind must be a mesh")
+    if not is_curveskel_armature(arm_obj):
+        raise CurveSkelError(f"bind: '{getattr(arm_obj, 'name', arm_obj)}' is not a curveskel armature")
+    if mesh_obj.mode != 'OBJECT':
+        raise CurveSkelError(f"bind: '{mesh_obj.name}' must be in object mode")
+    me = mesh_obj.data
+    n = len(me.vertices)
+    warnings: list[str] = []
+
+    lay = layout_of(arm_obj)
+    deform = [b.name for b in arm_obj.data.bones if b.use_deform]
+    missing = [nm for nm in lay.names if nm not in arm_obj.data.bones]
+    if missing:
+        raise CurveSkelError(f"bind: armature '{arm_obj.name}' lacks bone(s) {', '.join(missing[:5])}: "
+                             "generate it again")
+    own = set(mesh_obj.get(GROUPS_KEY, []))
+    clash = [g.name for g in mesh_obj.vertex_groups if g.name in deform and g.name not in own]
+    if clash:
+        raise CurveSkelError(f"bind: the mesh already has vertex group(s) named like bones "
+                             f"({', '.join(clash[:5])}); rename them first")
+    stack_index = unbind_mesh(mesh_obj)
+
+    fig = {"method": method, "vertices": n, "armature": arm_obj.name, "warnings": warnings}
+    if method == "MAPPING":
+        tw = time.perf_counter()
+        joints = np.asarray(arm_obj["curveskel_joints"], dtype=np.float64).reshape(-1, 4)
+        bones = np.asarray(arm_obj["curveskel_bones"], dtype=np.int64).reshape(-1, 2)
+        use_sk = (skeleton is not None and len(skeleton.bone) == n and skeleton.bones.shape == bones.shape
+                  and np.array_equal(skeleton.bones, bones))
+        if use_sk:
+            bone, t = skeleton.bone, skeleton.t
+            fig["mapping"] = "skeleton"
+        else:
+            # vertices into the armature's space (the skeleton's space)
+            M = np.array(arm_obj.matrix_world.inverted() @ mesh_obj.matrix_world)
+            P = _vertices(me) @ M[:3, :3].T + M[:3, 3]
+            bone, t, _ = project_on_bones(P, joints, bones)
+            fig["mapping"] = "closest"
+            if skeleton is not None:
+                warnings.append("the skeleton's mapping does not match the mesh's vertices: "
+                                "mapped each vertex to its closest bone instead")
+        index, weight = skin_weights(lay, bone, t, blend=blend)
+        groups = [lay.names[r] for r in range(lay.n_bones)]
+        # only groups that receive weight, in armature order
+        used = np.zeros(lay.n_bones, bool)
+        used[index[index >= 0]] = True
+        remap = np.full(lay.n_bones, -1, np.int64)
+        remap[used] = np.arange(used.sum())
+        groups = [g for g, u in zip(groups, used) if u]
+        col = np.where(index >= 0, remap[np.maximum(index, 0)], -1)
+        fig["mapping_seconds"] = time.perf_counter() - tw
+        tw = time.perf_counter()
+        write_weights(mesh_obj, groups, col, weight)
+        fig["weights_seconds"] = time.perf_counter() - tw
+        fig["max_influences"] = int((index >= 0).sum(axis=1).max()) if n else 0
+        fig["unweighted"] = int(np.sum(weight.sum(axis=1) <= 0))
+        fig["blend"] = float(blend)
+        mod = mesh_obj.modifiers.new(MODIFIER_NAME, 'ARMATURE')
+    else:
+        groups, mod = _heat_weights(mesh_obj, arm_obj, deform, warnings)
+        fig["mapping"] = "heat"
+        fig["weights_seconds"] = time.perf_counter() - t0
+        if n > HEAT_SLOW_VERTICES:
+            warnings.append(f"heat weights are slow on large meshes ({n} vertices); "
+                            "the skeleton-mapping method is much faster")
+        fig["max_influences"], fig["unweighted"] = _influence_counts(mesh_obj, set(groups))
+
+    mod.object = arm_obj
+    mod.use_vertex_groups = True
+    mod.use_bone_envelopes = False
+    idx = list(mesh_obj.modifiers).index(mod)
+    if idx != stack_index:
+        mesh_obj.modifiers.move(idx, min(stack_index, len(mesh_obj.modifiers) - 1))
+    mesh_obj[GROUPS_KEY] = list(groups)
+    mesh_obj[MODIFIER_KEY] = mod.name
+    mesh_obj[ARMATURE_KEY] = arm_obj.name
+    fig["groups"] = len(groups)
+    if fig.get("unweighted"):
+        warnings.append(f"{fig['unweighted']} vertices got no weight")
+    fig["seconds"] = time.perf_counter() - t0
+    return fig
+
+
+def _influence_counts(mesh_obj, groups) -> tuple[int, int]:
+    """(most influences on one vertex, vertices without weight) among ``groups`` (slow path, HEAT)."""
+    ids = {vg.index for vg in mesh_obj.vertex_groups if vg.name in groups}
+    most, none = 0, 0
+    for v in mesh_obj.data.vertices:
+        k = sum(1 for g in v.groups if g.group in ids and g.weight > 0)
+        most = max(most, k)
+        none += k == 0
+    return most, none
+
+
+def _heat_weights(mesh_obj, arm_obj, deform, warnings):
+    """Blender's automatic (heat) weights; the parenting it makes is undone (curveskel only binds
+    through the modifier). Returns (group names, modifier)."""
+    ctx = bpy.context
+    vl = ctx.view_layer
+    prev_sel = [o for o in vl.objects if o.select_get()]
+    prev_active = vl.objects.active
+    parent, parent_type, parent_bone = mesh_obj.parent, mesh_obj.parent_type, mesh_obj.parent_bone
+    pinv, mw = mesh_obj.matrix_parent_inverse.copy(), mesh_obj.matrix_world.copy()
+    before = {m.name for m in mesh_obj.modifiers}
+    for o in prev_sel:
+        o.select_set(False)
+    mesh_obj.select_set(True)
+    arm_obj.select_set(True)
+    vl.objects.active = arm_obj
+    try:
+        bpy.ops.object.parent_set(type='ARMATURE_AUTO')
+    except RuntimeError as exc:
+        warnings.append(f"heat weights: {exc}".strip())
+    finally:
+        mesh_obj.parent = parent
+        mesh_obj.parent_type = parent_type
+        mesh_obj.parent_bone = parent_bone
+        mesh_obj.matrix_parent_inverse = pinv
+        mesh_obj.matrix_world = mw
+        for o in vl.objects:
+            o.select_set(o in prev_sel)
+        vl.objects.active = prev_active
+    new = [m for m in mesh_obj.modifiers if m.name not in before and m.type == 'ARMATURE']
+    if not new:
+        raise CurveSkelError("heat weights failed: Blender added no Armature modifier")
+    mod = new[0]
+    mod.name = MODIFIER_NAME
+    groups = [g.name for g in mesh_obj.vertex_groups if g.name in set(deform)]
+    return groups, mod
+
+
+def benchmark_bind(vertices: int = 100_000, *, bones: int = 20, method: str = "MAPPING",
+                   use_mapping: bool = True) -> dict:
+    """Time :func:`bind_mesh` on a tube of about ``vertices`` vertices with a chain of ``bones``.
+
+    Builds the mesh, its skeleton (a straight chain along the tube, mapping by the vertex's
+    height) and armature in the current scene, binds and returns the figures of
+    :func:`bind_mesh` plus ``build_seconds``. With ``use_mapping=False`` the mapping is recomputed
+    by closest point on the bones (the re-bind path).
+    """
+    from .armature import build_armature
+    from .core.skeleton import Skeleton
+
+    around = 64
+    rings = max(vertices // around, 2)
+    length, radius = 10.0, 0.5
+    z = np.linspace(0.0, length, rings)
+    a = 2 * np.pi * np.arange(around) / around
+    V = np.stack([np.broadcast_to(radius * np.cos(a), (rings, around)),
+                  np.broadcast_to(radius * np.sin(a), (rings, around)),
+                  np.broadcast_to(z[:, None], (rings, around))], -1).reshape(-1, 3)
+    r = np.arange(rings - 1)[:, None] * around
+    k = np.arange(around)[None, :]
+    q = np.stack([r + k, r + (k + 1) % around, r + around + (k + 1) % around, r + around + k], -1).reshape(-1, 4)
+    t0 = time.perf_counter()
+    me = bpy.data.meshes.new("curveskel_bench")
+    me.vertices.add(len(V))
+    me.vertices.foreach_set("co", V.ravel())
+    me.loops.add(q.size)
+    me.loops.foreach_set("vertex_index", q.ravel())
+    me.polygons.add(len(q))
+    me.polygons.foreach_set("loop_start", np.arange(0, q.size, 4))
+    me.update(calc_edges=True)
+    ob = bpy.data.objects.new("curveskel_bench", me)
+    bpy.context.scene.collection.objects.link(ob)
+    zj = np.linspace(0.0, length, bones + 1)
+    joints = np.stack([0 * zj, 0 * zj, zj, np.full_like(zj, radius)], 1)
+    chain = np.stack([np.arange(bones), np.arange(1, bones + 1)], 1)
+    u = V[:, 2] / length * bones
+    b = np.minimum(u.astype(np.int64), bones - 1)
+    sk = Skeleton(joints, chain, b, 1.0 - (u - b))
+    arm = build_armature(bpy.context, sk, "curveskel_bench.skeleton", bpy.context.scene.collection,
+                         ob.matrix_world)
+    build = time.perf_counter() - t0
+    fig = bind_mesh(ob, arm, sk if use_mapping else None, method=method)
+    fig["build_seconds"] = build
+    return fig

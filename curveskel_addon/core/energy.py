@@ -1,0 +1,215 @@
+"""The approximation error E (eq. 20), its exact gradient, and E along a line as a quartic.
+
+Why a module of its own: every solver, the pruning/simplification passes and the quality
+measures evaluate the same E, so its conventions live in one place:
+
+* ``sigma_v = t_v x_i + (1 - t_v) x_j`` and ``rho_v = t_v r_i + (1 - t_v) r_j`` for the bone
+  ``(i, j) = bones[bone[v]]`` (eqs. 16-19: ``t = 1`` at joint ``i``);
+* ``e_v = |v - sigma_v|^2 - rho_v^2`` (the residual) and ``E = sum_v w_v e_v^2`` (eq. 20 with a
+  weight per vertex; ``w = 1`` is the paper's vertex sum).
+
+Everything is vectorised over the vertices; per-joint sums use ``np.bincount`` (``np.add.at`` is
+an order of magnitude slower).
+
+Line search coefficients
+------------------------
+Along a direction ``D`` (J, 4), ``sigma_v`` and ``rho_v`` are affine in ``lam``:
+``v - sigma_v(joints - lam D) = d_v + lam p_v`` and ``rho_v(lam) = rho_v - lam q_v`` with
+``p_v = t D_i[:3] + (1-t) D_j[:3]``, ``q_v = t D_i[3] + (1-t) D_j[3]``. Hence
+``e_v(lam) = A + B lam + C lam^2`` with ``A = e_v``, ``B = 2 (d.p + rho q)``,
+``C = |p|^2 - q^2``, and ``E(lam) = sum_k c_k lam^k`` with
+
+    c4 = sum w C^2,  c3 = sum 2 w B C,  c2 = sum w (B^2 + 2 A C),  c1 = sum 2 w A B,  c0 = sum w A^2.
+
+The paper's eq. 24 (the same expansion for one coordinate, ``((a z + b)^2 - c)^2``) has two
+misprints: the ``z^3`` coefficient is ``4 a^3 b`` (printed ``4 a^3``) and the ``z^2`` coefficient
+is ``6 a^2 b^2 - 2 a^2 c`` (printed ``6 a^2 b^2 - 2 b^2 c``). The derivation above does not use
+eq. 24, so it is not affected.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .problem import FitProblem
+
+__all__ = ["residuals", "energy", "energy_and_gradient", "line_quartic", "bone_terms"]
+
+
+def bone_terms(pr: FitProblem, joints: np.ndarray | None = None):
+    """Per-vertex quantities shared by E, its gradient and the solvers.
+
+    Parameters
+    ----------
+    pr : FitProblem
+    joints : (J, 4) float, optional
+        Joints to evaluate at instead of ``pr.joints``.
+
+    Returns
+    -------
+    i, j : (n,) int
+        The two joints of each vertex's bone (``t = 1`` at ``i``).
+    d : (n, 3) float
+        ``v - sigma_v``.
+    rho : (n,) float
+        Interpolated radius ``rho_v``.
+    e : (n,) float
+        Residual ``|d|^2 - rho^2``.
+    """
+    J = pr.joints if joints is None else joints
+    ij = pr.bones[pr.bone]
+    i, j = ij[:, 0], ij[:, 1]
+    t = pr.t
+    Ji, Jj = J[i], J[j]
+    # sigma = t x_i + (1-t) x_j = x_j + t (x_i - x_j): one multiply per coordinate.
+    s = Jj + t[:, None] * (Ji - Jj)
+    d = pr.points - s[:, :3]
+    rho = s[:, 3]
+    e = np.einsum("ij,ij->i", d, d) - rho * rho
+    return i, j, d, rho, e
+
+
+def residuals(pr: FitProblem) -> np.ndarray:
+    """Residuals ``e_v = |v - sigma_v|^2 - rho_v^2`` (unweighted).
+
+    Parameters
+    ----------
+    pr : FitProblem
+
+    Returns
+    -------
+    (n,) float
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from curveskel_addon.core.problem import FitProblem
+    >>> pr = FitProblem(np.array([[1.0, 0, 0.5]]), np.ones(1), np.array([[0, 0, 0, 1.0], [0, 0, 1, 1.0]]),
+    ...                 np.array([[0, 1]]), np.array([0]), np.array([0.5]))
+    >>> residuals(pr)
+    array([0.])
+    """
+    return bone_terms(pr)[4]
+
+
+def energy(pr: FitProblem, joints: np.ndarray | None = None) -> float:
+    """E = sum_v w_v e_v^2 (eq. 20 with weights).
+
+    Parameters
+    ----------
+    pr : FitProblem
+    joints : (J, 4) float, optional
+        Evaluate at these joints instead of ``pr.joints``.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from curveskel_addon.core.problem import FitProblem
+    >>> pr = FitProblem(np.array([[2.0, 0, 0.5]]), np.ones(1), np.array([[0, 0, 0, 1.0], [0, 0, 1, 1.0]]),
+    ...                 np.array([[0, 1]]), np.array([0]), np.array([0.5]))
+    >>> energy(pr)        # (2^2 - 1^2)^2
+    9.0
+    """
+    e = bone_terms(pr, joints)[4]
+    return float(np.dot(pr.weights, e * e))
+
+
+def _scatter_joint_pairs(i, j, gi, gj, n_joints: int) -> np.ndarray:
+    """Sum per-vertex 4-vectors ``gi`` into joints ``i`` and ``gj`` into joints ``j`` -> (J, 4)."""
+    idx = np.concatenate([i, j])
+    vals = np.concatenate([gi, gj])
+    out = np.empty((n_joints, 4))
+    for c in range(4):
+        out[:, c] = np.bincount(idx, weights=vals[:, c], minlength=n_joints)
+    return out
+
+
+def energy_and_gradient(pr: FitProblem, joints: np.ndarray | None = None) -> tuple[float, np.ndarray]:
+    """E and its exact gradient with respect to every joint's (x, y, z, r).
+
+    With ``g_v = -4 w_v e_v (d_v, rho_v)`` (4-vector),
+    ``dE/dJ_i = sum_v t_v g_v`` and ``dE/dJ_j = sum_v (1 - t_v) g_v``.
+
+    Parameters
+    ----------
+    pr : FitProblem
+    joints : (J, 4) float, optional
+        Evaluate at these joints instead of ``pr.joints``.
+
+    Returns
+    -------
+    E : float
+    grad : (J, 4) float
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from curveskel_addon.core.problem import FitProblem
+    >>> pr = FitProblem(np.array([[2.0, 0, 0.5]]), np.ones(1), np.array([[0, 0, 0, 1.0], [0, 0, 1, 1.0]]),
+    ...                 np.array([[0, 1]]), np.array([0]), np.array([0.5]))
+    >>> E, g = energy_and_gradient(pr)
+    >>> g[:, 3]           # dE/dr: -4 * 3 * 1 * 0.5 on each joint
+    array([-6., -6.])
+    """
+    J = pr.joints if joints is None else joints
+    i, j, d, rho, e = bone_terms(pr, J)
+    we = pr.weights * e
+    E = float(np.dot(we, e))
+    g = np.empty((len(e), 4))
+    g[:, :3] = d
+    g[:, 3] = rho
+    g *= (-4.0 * we)[:, None]
+    t = pr.t[:, None]
+    return E, _scatter_joint_pairs(i, j, t * g, g - t * g, len(J))
+
+
+def line_quartic(pr: FitProblem, D: np.ndarray, joints: np.ndarray | None = None) -> np.ndarray:
+    """Coefficients c0..c4 with ``E(joints - lam D) = sum_k c_k lam^k`` exactly.
+
+    See the module docstring for the derivation (and the misprints of the paper's eq. 24).
+
+    Parameters
+    ----------
+    pr : FitProblem
+    D : (J, 4) float
+        Direction (for gradient descent, the gradient).
+    joints : (J, 4) float, optional
+        Base point instead of ``pr.joints``.
+
+    Returns
+    -------
+    (5,) float
+        ``c0, c1, c2, c3, c4``; ``c0 == E(joints)`` and ``c4 >= 0``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from curveskel_addon.core.problem import FitProblem
+    >>> pr = FitProblem(np.array([[2.0, 0, 0.5]]), np.ones(1), np.array([[0, 0, 0, 1.0], [0, 0, 1, 1.0]]),
+    ...                 np.array([[0, 1]]), np.array([0]), np.array([0.5]))
+    >>> D = np.zeros((2, 4)); D[:, 3] = 1.0        # shrink both radii: e(lam) = 4 - (1 - lam)^2
+    >>> line_quartic(pr, D)                        # (3 + 2 lam - lam^2)^2
+    array([ 9., 12., -2., -4.,  1.])
+    """
+    J = pr.joints if joints is None else joints
+    D = np.asarray(D, dtype=np.float64)
+    i, j, d, rho, A = bone_terms(pr, J)
+    t = pr.t[:, None]
+    Dj = D[j]
+    pq = Dj + t * (D[i] - Dj)             # t D_i + (1-t) D_j
+    p, q = pq[:, :3], pq[:, 3]
+    B = 2.0 * (np.einsum("ij,ij->i", d, p) + rho * q)
+    C = np.einsum("ij,ij->i", p, p) - q * q
+    w = pr.weights
+    wA, wB, wC = w * A, w * B, w * C
+    return np.array([
+        np.dot(wA, A),
+        2.0 * np.dot(wA, B),
+        np.dot(wB, B) + 2.0 * np.dot(wA, C),
+        2.0 * np.dot(wB, C),
+        np.dot(wC, C),
+    ])

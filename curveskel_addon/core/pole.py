@@ -1,0 +1,126 @@
+"""The pole and the mapping function f of the first approximation (paper section 4.1).
+
+f is the graph-geodesic distance from a pole vertex: the length of the shortest chain of mesh
+edges (Dijkstra on the edge graph, edge lengths as weights). It does not depend on the object's
+orientation in space, only on its surface.
+
+The paper picks the pole in three steps so that it lies at an extremity whatever the random
+start: a random vertex v1, the vertex v2 farthest from v1, the pole p farthest from v2. We keep
+the steps with two deliberate changes, both measured:
+
+* **v2 is the Euclidean-farthest vertex from v1.** It lies on the convex hull, hence at an
+  extremity, which is all step 2 is for, and it saves one of three Dijkstra runs (about a
+  third of this stage, ~1 s on a 1M-vertex mesh). p is still graph-geodesically farthest.
+* **The farthest vertex is ill-conditioned near ties.** On a capsule every vertex of the far
+  cap is almost equally far, and the graph metric's anisotropy picks one well off the tip; the
+  contour lines around an off-tip pole are tilted, so the first joints lie off the axis with
+  radii ~30 % too large. So p is the vertex *Euclidean*-farthest from v2 among those whose
+  graph distance from v2 is within ``POLE_SLACK`` (10 %) of the maximum: still at a
+  geodesically extreme part of the shape, but at its tip.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse.csgraph import dijkstra
+
+from .errors import CurveSkelError
+from .mesh_graph import adjacency, edge_csr
+
+__all__ = ["find_pole", "geodesic_from", "edge_graph", "POLE_SLACK"]
+
+#: Candidates for the pole: graph distance from v2 at least (1 - POLE_SLACK) * max.
+POLE_SLACK = 0.1
+
+
+def edge_graph(n: int, E: np.ndarray, lengths: np.ndarray):
+    """Sparse graph of the edges for :func:`geodesic_from` (zero lengths raised to a tiny value).
+
+    Uses the sort-free upper-triangular form when E is sorted and unique (as from
+    ``mesh_graph.edge_table``), a symmetric matrix otherwise. A sparse graph cannot tell an
+    explicit zero weight from a missing edge, hence the tiny positive floor.
+    """
+    E = np.asarray(E, dtype=np.int64).reshape(-1, 2)
+    lengths = np.asarray(lengths, dtype=np.float64)
+    pos = lengths[lengths > 0]
+    w = np.maximum(lengths, (pos.min() if len(pos) else 1.0) * 1e-9)
+    if len(E) and np.all(E[:, 0] < E[:, 1]):
+        key = E[:, 0] * n + E[:, 1]
+        if np.all(key[1:] > key[:-1]):
+            return edge_csr(n, E, w)
+    return adjacency(n, E, w)
+
+
+def geodesic_from(A, source: int) -> np.ndarray:
+    """Graph-geodesic distance from ``source`` to every vertex.
+
+    Parameters
+    ----------
+    A : (n, n) scipy.sparse matrix
+        Edge lengths, read as undirected (see :func:`edge_graph`).
+    source : int
+
+    Returns
+    -------
+    d : (n,) float
+        Distances; ``inf`` for vertices not connected to ``source``.
+    """
+    return dijkstra(A, directed=False, indices=int(source), min_only=True)
+
+
+def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int) -> tuple[int, np.ndarray]:
+    """Pole vertex and the mapping function f (graph-geodesic distance from the pole).
+
+    Parameters
+    ----------
+    V : (n, 3) float
+        Vertex positions.
+    E : (e, 2) int
+        Unique undirected edges.
+    lengths : (e,) float
+        Edge lengths (weights of the graph).
+    seed : int
+        Seed of the random first vertex (``np.random.default_rng(seed)``).
+
+    Returns
+    -------
+    pole : int
+        See the module docstring: at the tip of a graph-geodesically farthest part.
+    f : (n,) float
+        Graph-geodesic distance from the pole; ``f[pole] == 0``. Vertices not connected to the
+        pole (not expected: the caller passes one connected component) get ``inf``.
+
+    Raises
+    ------
+    CurveSkelError
+        If there are no vertices, or E and lengths disagree in length.
+
+    Examples
+    --------
+    >>> V = np.array([[0., 0, 0], [1, 0, 0], [2, 0, 0]])
+    >>> E = np.array([[0, 1], [1, 2]])
+    >>> p, f = find_pole(V, E, np.array([1., 1.]), seed=0)
+    >>> p in (0, 2), float(f.max())
+    (True, 2.0)
+    """
+    V = np.asarray(V, dtype=np.float64)
+    n = len(V)
+    if n == 0:
+        raise CurveSkelError("find_pole: the mesh has no vertices")
+    E = np.asarray(E, dtype=np.int64).reshape(-1, 2)
+    if len(np.asarray(lengths)) != len(E):
+        raise CurveSkelError(f"find_pole: {len(E)} edges but {len(lengths)} lengths")
+    rng = np.random.default_rng(seed)
+    v1 = int(rng.integers(n))
+    if len(E) == 0:
+        f = np.full(n, np.inf)
+        f[v1] = 0.0
+        return v1, f
+    A = edge_graph(n, E, lengths)
+    v2 = int(np.argmax(np.einsum("ij,ij->i", V - V[v1], V - V[v1])))
+    d = geodesic_from(A, v2)
+    d = np.where(np.isfinite(d), d, -1.0)
+    cand = np.flatnonzero(d >= (1.0 - POLE_SLACK) * d.max())
+    e2 = np.einsum("ij,ij->i", V[cand] - V[v2], V[cand] - V[v2])
+    pole = int(cand[np.argmax(e2)])
+    return pole, geodesic_from(A, pole)

@@ -1,0 +1,420 @@
+"""Skeleton quality beyond the paper: pruning noise branches and merging straight-chain joints.
+
+Both operations change the *topology* of the skeleton (joint and bone counts), which the paper's
+optimisation cannot do (section 5: "branches ... should be considered as noise which can't be
+compensated by the minimization of (20)"; "smoothness ... is provided neither by Reeb graphs nor
+by the optimization process"). Each is judged by the same energy E (eq. 20, weighted by
+``FitProblem.weights``), so the decision is the paper's criterion applied to a discrete choice.
+
+Pipeline order (:func:`postprocess`)::
+
+    solved problem -> prune_branches -> solve -> simplify_chains -> solve
+
+Definitions used below (all vectorised over vertices):
+
+* residual of vertex v: ``e_v = |v - sigma_v|^2 - r(sigma_v)^2`` and ``E = sum_v w_v e_v^2``.
+* leaf branch: the chain of bones from a joint of degree 1 through joints of degree 2 up to the
+  first joint of degree >= 3 (its *root*, which is kept). A chain ending in another leaf is a whole
+  component and is never a branch.
+* the branch's vertices S: the vertices whose sigma lies on one of its bones.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from .problem import FitProblem
+
+__all__ = ["postprocess", "prune_branches", "simplify_chains", "leaf_branches", "branch_scores",
+           "residuals"]
+
+Solve = Callable[[FitProblem], FitProblem]
+
+
+# -- small vectorised helpers ------------------------------------------------------------------
+def residuals(points, joints, bones, bone, t) -> np.ndarray:
+    """(n,) ``e_v = |v - sigma_v|^2 - r_v^2`` (the term of eq. 20 before squaring)."""
+    i, j = bones[bone, 0], bones[bone, 1]
+    tt = t[:, None]
+    s = tt * joints[i, :3] + (1.0 - tt) * joints[j, :3]
+    r = t * joints[i, 3] + (1.0 - t) * joints[j, 3]
+    return np.einsum("ij,ij->i", points - s, points - s) - r * r
+
+
+def _energy(pr: FitProblem) -> float:
+    e = residuals(pr.points, pr.joints, pr.bones, pr.bone, pr.t)
+    return float(np.dot(pr.weights, e * e))
+
+
+def _project(P, Xi, Xj):
+    """Closest point parameters on segments: t with sigma = t*Xi + (1-t)*Xj, clamped to [0, 1].
+
+    P, Xi, Xj : (..., 3) broadcastable. Returns (t, squared distance).
+    """
+    d = Xi - Xj
+    dd = np.einsum("...k,...k->...", d, d)
+    t = np.einsum("...k,...k->...", P - Xj, d) / np.where(dd > 0, dd, 1.0)
+    t = np.clip(np.where(dd > 0, t, 0.5), 0.0, 1.0)
+    q = P - (t[..., None] * Xi + (1.0 - t[..., None]) * Xj)
+    return t, np.einsum("...k,...k->...", q, q)
+
+
+def _closest_on_bones(points, joints, bones, cand):
+    """Map ``points`` (m, 3) to the nearest of the candidate bones ``cand`` (k,) (Euclidean
+    distance to the segment, :func:`.mapping.closest_on_bones`). Returns (bone (m,), t (m,))."""
+    from .mapping import closest_on_bones
+
+    cand = np.asarray(cand, np.int64)
+    m = len(points)
+    indptr = np.arange(m + 1, dtype=np.int64) * len(cand)
+    bone, t, _ = closest_on_bones(points, joints, bones, (indptr, np.tile(cand, m)))
+    return bone, t
+
+
+def _degree(n_joints, bones) -> np.ndarray:
+    return np.bincount(bones.ravel(), minlength=n_joints)
+
+
+def _incidence(n_joints, bones) -> list[list[int]]:
+    inc: list[list[int]] = [[] for _ in range(n_joints)]
+    for b, (i, j) in enumerate(bones.tolist()):
+        inc[i].append(b)
+        inc[j].append(b)
+    return inc
+
+
+def _compact(pr: FitProblem, keep_bone: np.ndarray) -> FitProblem:
+    """Drop bones not in ``keep_bone`` (bool (B,)) and joints no kept bone uses; re-index.
+
+    Every vertex must already be mapped to a kept bone.
+    """
+    bones = pr.bones[keep_bone]
+    used = np.zeros(len(pr.joints), bool)
+    used[bones.ravel()] = True
+    jmap = np.cumsum(used) - 1
+    bmap = np.cumsum(keep_bone) - 1
+    assert keep_bone[pr.bone].all(), "a vertex is mapped to a removed bone"
+    return FitProblem(pr.points, pr.weights, pr.joints[used].copy(), jmap[bones], bmap[pr.bone],
+                      pr.t.copy(), dict(pr.meta))
+
+
+# -- pruning -----------------------------------------------------------------------------------
+def leaf_branches(n_joints: int, bones: np.ndarray) -> list[tuple[int, list[int], list[int]]]:
+    """Leaf branches of a skeleton graph.
+
+    Returns
+    -------
+    list of (root, joints, bones)
+        ``root`` the first joint of degree >= 3 reached from a leaf (kept when pruning);
+        ``joints`` the branch's own joints (leaf first, root excluded); ``bones`` its bones.
+    """
+    deg = _degree(n_joints, bones)
+    inc = _incidence(n_joints, bones)
+    out = []
+    for leaf in np.flatnonzero(deg == 1).tolist():
+        cur, prev_b, js, bs = leaf, -1, [], []
+        while True:
+            nxt_b = [b for b in inc[cur] if b != prev_b]
+            if deg[cur] == 1 and prev_b >= 0:      # reached another leaf: a whole chain
+                bs = None
+                break
+            if deg[cur] >= 3:
+                break
+            js.append(cur)
+            b = nxt_b[0]
+            bs.append(b)
+            i, j = bones[b]
+            cur = j if i == cur else i
+            prev_b = b
+            if len(bs) > len(bones):                # safety; cannot happen on a simple graph
+                bs = None
+                break
+        if bs:
+            out.append((cur, js, bs))
+    return out
+
+
+def branch_scores(pr: FitProblem, branches=None, hops: int = 2):
+    """Score each leaf branch: what removing it would cost, relative to what it explains.
+
+    For a branch with vertices S, let e_v be their current residuals and e'_v, r'_v, d'_v the
+    residual, radius and distance to sigma'_v after mapping them to the nearest remaining bone
+    within ``hops`` bones of the root (nothing else moves). Then
+
+    * cost (increase of E):   ``dE = sum_S w_v (e'_v^2 - e_v^2)``
+    * what the branch explains: ``X = sum_S w_v max(d'_v^2, r'_v^2)^2``, the energy its vertices
+      would have if the remaining skeleton explained nothing of them (the largest of the two
+      terms of e'_v); since ``|e'_v| <= max(d'^2, r'^2)``, ``dE <= X``.
+    * score ``s = dE / X`` in [0, 1] (below 0 when removal even lowers E): the fraction of the
+      branch's geometry that the rest of the skeleton cannot account for. For a bump of height h
+      on a tube of radius r, ``s ~ (2h/r)^2``; for a real limb of length L >> r, ``s`` approaches 1.
+
+    Returns
+    -------
+    branches : list of (root, joints, bones)
+    scores : (k,) float
+    mappings : list of (vertex ids, new bone, new t) for each branch
+    """
+    if branches is None:
+        branches = leaf_branches(len(pr.joints), pr.bones)
+    order = np.argsort(pr.bone, kind="stable")
+    starts = np.searchsorted(pr.bone[order], np.arange(len(pr.bones) + 1))
+    e_now = residuals(pr.points, pr.joints, pr.bones, pr.bone, pr.t)
+    scores, maps = np.empty(len(branches)), []
+    for k, (root, _js, bs) in enumerate(branches):
+        vids = np.concatenate([order[starts[b]:starts[b + 1]] for b in bs]) if bs else np.zeros(0, int)
+        cand = _near_bones(pr.bones, root, set(bs), hops)
+        if len(vids) == 0:
+            scores[k] = -np.inf
+            maps.append((vids, vids, np.zeros(0)))
+            continue
+        if len(cand) == 0:
+            scores[k] = np.inf
+            maps.append((vids, vids, np.zeros(0)))
+            continue
+        P = pr.points[vids]
+        nb, nt = _closest_on_bones(P, pr.joints, pr.bones, cand)
+        e_new = residuals(P, pr.joints, pr.bones, nb, nt)
+        w = pr.weights[vids]
+        i, j = pr.bones[nb, 0], pr.bones[nb, 1]
+        r_new = nt * pr.joints[i, 3] + (1 - nt) * pr.joints[j, 3]
+        d2 = e_new + r_new ** 2
+        dE = float(np.dot(w, e_new ** 2 - e_now[vids] ** 2))
+        X = float(np.dot(w, np.maximum(d2, r_new ** 2) ** 2))
+        scores[k] = dE / X if X > 0 else 0.0
+        maps.append((vids, nb, nt))
+    return branches, scores, maps
+
+
+def _near_bones(bones: np.ndarray, root: int, removed: set, hops: int) -> np.ndarray:
+    """Bones not in ``removed`` with an endpoint within ``hops - 1`` joints of ``root``."""
+    keep = np.ones(len(bones), bool)
+    keep[list(removed)] = False
+    kb = np.flatnonzero(keep)
+    near = {root}
+    for _ in range(max(hops - 1, 0)):
+        sel = np.isin(bones[kb], list(near)).any(axis=1)
+        near |= set(bones[kb[sel]].ravel().tolist())
+    sel = np.isin(bones[kb], list(near)).any(axis=1)
+    return kb[sel]
+
+
+def prune_branches(pr: FitProblem, threshold: float, *, max_rounds: int = 50) -> tuple[FitProblem, list]:
+    """Remove leaf branches whose :func:`branch_scores` score is below ``threshold``.
+
+    Greedy in rounds: each round scores every leaf branch and removes, lowest score first, the
+    branches below ``threshold`` whose roots differ (so the scores stay valid within a round: a
+    removal only changes its own root's degree). Vertices of a removed branch are mapped to the
+    nearest remaining bone near its root; its joints and bones are dropped and the rest re-indexed.
+    A root left with degree 2 joins two chains, which the next round may score as one branch.
+
+    Parameters
+    ----------
+    pr : FitProblem
+        Usually an optimised one; not modified.
+    threshold : float in [0, 1]
+        0 prunes nothing; 1 prunes every branch whose removal costs less than everything it
+        explains (nearly all of them). See :func:`branch_scores`.
+
+    Returns
+    -------
+    FitProblem, list of dict
+        The pruned problem (not re-optimised) and one record per removed branch
+        (root, joints, bones, vertices, score).
+    """
+    pr = pr.copy()
+    removed_log = []
+    if threshold <= 0:
+        return pr, removed_log
+    for _ in range(max_rounds):
+        branches, scores, maps = branch_scores(pr)
+        if not branches:
+            break
+        roots_done: set[int] = set()
+        keep_bone = np.ones(len(pr.bones), bool)
+        bone, t = pr.bone.copy(), pr.t.copy()
+        n_removed = 0
+        for k in np.argsort(scores, kind="stable"):
+            if not scores[k] < threshold:
+                break
+            root, js, bs = branches[k]
+            if root in roots_done:
+                continue
+            roots_done.add(root)
+            vids, nb, nt = maps[k]
+            bone[vids], t[vids] = nb, nt
+            keep_bone[bs] = False
+            n_removed += 1
+            removed_log.append({"root": int(root), "joints": len(js), "bones": len(bs),
+                                "vertices": int(len(vids)), "score": float(scores[k])})
+        if n_removed == 0:
+            break
+        pr.bone, pr.t = bone, t
+        pr = _compact(pr, keep_bone)
+    return pr, removed_log
+
+
+# -- chain simplification ----------------------------------------------------------------------
+def _merge_costs(pr: FitProblem):
+    """For every joint of degree 2: the E increase of merging its two bones into one.
+
+    Returns (cand (k,), cost (k,), nbrs (k, 2), bones (k, 2), new_t_end) where the merged bone
+    of candidate c is ``(nbrs[c, 0], nbrs[c, 1])`` and ``new_t_end[s]`` (n,) is the new t of every
+    vertex for the merge at end s of its bone (NaN where that end is no candidate).
+    """
+    J, B = len(pr.joints), pr.bones
+    deg = _degree(J, B)
+    # For each joint of degree 2, its two bones (via sorting the incidence list).
+    ends = B.ravel()                                        # joint of (bone, end)
+    binc = np.repeat(np.arange(len(B)), 2)
+    o = np.argsort(ends, kind="stable")
+    cand = np.flatnonzero(deg == 2)
+    first = np.searchsorted(ends[o], cand)
+    b1, b2 = binc[o[first]], binc[o[first + 1]]
+    other = lambda b, j: np.where(B[b, 0] == j, B[b, 1], B[b, 0])  # noqa: E731
+    a, c = other(b1, cand), other(b2, cand)
+    ok = (a != c) & (b1 != b2)
+    # The merged bone must not duplicate an existing bone (that would change the topology).
+    key = lambda x, y: np.minimum(x, y) * J + np.maximum(x, y)  # noqa: E731
+    existing = np.unique(key(B[:, 0], B[:, 1]))
+    ok &= ~np.isin(key(a, c), existing)
+    cand, b1, b2, a, c = cand[ok], b1[ok], b2[ok], a[ok], c[ok]
+
+    # Per vertex: is an end of its bone a candidate? Evaluate the merged segment for each end.
+    slot = np.full(J, -1)
+    slot[cand] = np.arange(len(cand))
+    e_now = residuals(pr.points, pr.joints, B, pr.bone, pr.t)
+    w = pr.weights
+    cost = np.zeros(len(cand))
+    new_t = []
+    X, R = pr.joints[:, :3], pr.joints[:, 3]
+    for s in (0, 1):
+        jv = B[pr.bone, s]
+        cv = slot[jv]
+        m = cv >= 0
+        tn = np.full(len(pr.points), np.nan)
+        if m.any():
+            ci = cv[m]
+            tt, d2 = _project(pr.points[m], X[a[ci]], X[c[ci]])
+            r = tt * R[a[ci]] + (1 - tt) * R[c[ci]]
+            en = d2 - r * r
+            cost += np.bincount(ci, weights=w[m] * (en * en - e_now[m] ** 2), minlength=len(cand))
+            tn[m] = tt
+        new_t.append(tn)
+    return cand, cost, np.stack([a, c], 1), np.stack([b1, b2], 1), new_t
+
+
+def simplify_chains(pr: FitProblem, threshold: float, *, max_rounds: int = 200) -> tuple[FitProblem, dict]:
+    """Merge degree-2 joints whose removal barely changes E, cheapest first.
+
+    A merge removes joint j with bones (a, j), (j, c) and puts the bone (a, c) in their place;
+    the vertices of both bones are re-mapped to it by orthogonal projection (t clamped to [0, 1]).
+    Its cost is the exact change of E with nothing else moving. The total cost of all merges
+    is kept within a budget of ``threshold * E`` (E of the input), so the result satisfies
+    ``E_after <= (1 + threshold) * E_before`` before any re-optimisation (which only lowers E).
+
+    Each round computes every candidate's cost in one vectorised pass over the vertices, then
+    accepts candidates in increasing cost while the budget lasts, skipping a candidate adjacent to
+    one accepted in the same round (their costs interact). Rounds repeat until nothing is accepted.
+    Merges that would duplicate a bone (collapse a triangle cycle) or create a loop are never made,
+    so the skeleton's topology (components, cycles, branch joints, leaves) is kept.
+
+    Parameters
+    ----------
+    pr : FitProblem
+        Usually optimised; not modified.
+    threshold : float >= 0
+        Allowed relative increase of E (0 disables; 0.01 allows 1 %).
+
+    Returns
+    -------
+    FitProblem, dict
+        The simplified problem and {"merged", "rounds", "energy_before", "energy_after"}.
+    """
+    pr = pr.copy()
+    E0 = _energy(pr)
+    info = {"merged": 0, "rounds": 0, "energy_before": E0, "energy_after": E0}
+    if threshold <= 0:
+        return pr, info
+    budget = threshold * E0
+    spent = 0.0
+    for _ in range(max_rounds):
+        cand, cost, nbrs, cb, new_t = _merge_costs(pr)
+        if len(cand) == 0:
+            break
+        blocked = np.zeros(len(pr.joints), bool)
+        acc = []
+        for k in np.argsort(cost, kind="stable"):
+            if spent + cost[k] > budget:
+                if cost[k] > 0:
+                    break
+                continue
+            j = cand[k]
+            if blocked[j]:
+                continue
+            acc.append(k)
+            spent += cost[k]
+            blocked[[j, nbrs[k, 0], nbrs[k, 1]]] = True
+        if not acc:
+            break
+        acc = np.asarray(acc)
+        bones, bone, t = pr.bones.copy(), pr.bone.copy(), pr.t.copy()
+        keep_bone = np.ones(len(bones), bool)
+        slot = np.full(len(pr.joints), -1)
+        slot[cand[acc]] = acc
+        for s in (0, 1):                                  # vertices whose bone end s is merged
+            m = slot[pr.bones[pr.bone, s]] >= 0
+            m &= ~np.isnan(new_t[s])
+            t[m] = new_t[s][m]
+            bone[m] = cb[slot[pr.bones[pr.bone[m], s]], 0]
+        bones[cb[acc, 0]] = nbrs[acc]                     # (a, c) replaces (a, j); t refers to a, c
+        keep_bone[cb[acc, 1]] = False
+        pr.bones, pr.bone, pr.t = bones, bone, t
+        pr = _compact(pr, keep_bone)
+        info["merged"] += int(len(acc))
+        info["rounds"] += 1
+    info["energy_after"] = _energy(pr)
+    return pr, info
+
+
+# -- entry point -------------------------------------------------------------------------------
+def postprocess(problem: FitProblem, params, solve: Solve) -> FitProblem:
+    """Prune noise branches, then simplify straight chains, re-optimising after each change.
+
+    Parameters
+    ----------
+    problem : FitProblem
+        The solver's result (joints, bones, mapping). Not modified.
+    params : SkeletonParams
+        Uses ``params.prune`` (branch score threshold in [0, 1], 0 = off) and
+        ``params.simplify`` (relative E budget, 0 = off).
+    solve : callable(FitProblem) -> FitProblem
+        Re-optimises a problem (short run of the configured solver).
+
+    Returns
+    -------
+    FitProblem
+        ``meta["postprocess"]`` records what was removed and E before/after each stage.
+    """
+    pr = problem.copy()
+    log = {"energy_in": _energy(pr), "joints_in": int(len(pr.joints))}
+    if getattr(params, "prune", 0.0) > 0:
+        pr, removed = prune_branches(pr, float(params.prune))
+        log["pruned"] = removed
+        if removed:
+            log["energy_pruned"] = _energy(pr)
+            pr = solve(pr)
+            log["energy_pruned_solved"] = _energy(pr)
+    if getattr(params, "simplify", 0.0) > 0:
+        pr, info = simplify_chains(pr, float(params.simplify))
+        log["simplify"] = info
+        if info["merged"]:
+            pr = solve(pr)
+            log["energy_simplified_solved"] = _energy(pr)
+    log["energy_out"] = _energy(pr)
+    log["joints_out"] = int(len(pr.joints))
+    pr.meta = dict(pr.meta)
+    pr.meta["postprocess"] = log
+    return pr

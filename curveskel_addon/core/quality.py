@@ -1,0 +1,736 @@
+"""Quality measures of a curve-skeleton against its mesh (issue 5).
+
+Every measure is dimensionless: lengths are divided by ``D``, the diagonal of the mesh's
+bounding box, and energies by ``D**4`` (E has units of length^4).
+
+The silhouette (paper, definition 3) of a skeleton with straight bones and linear radii is the
+union, over bones, of "round cones": the convex hull of the two end balls
+``B(x_i, r_i)`` and ``B(x_j, r_j)``. A joint without any bone contributes its ball.
+
+Measures returned by :func:`quality`
+------------------------------------
+energy_vertex
+    ``sum_v e_v^2 / (|V| D^4)`` with ``e_v = |v - sigma(v)|^2 - r(sigma(v))^2`` (eq. 20, w = 1):
+    the mean squared residual per vertex.
+energy_area
+    ``sum_v a_v e_v^2 / (A D^4)`` with ``a_v`` the barycentric vertex area and ``A`` the surface
+    area: the surface integral of eq. 8 divided by the area (a mean over the surface, independent
+    of the tessellation density).
+recon_mean, recon_p95
+    Mesh -> silhouette: over ``n_samples`` area-uniform samples ``x`` of the mesh surface, the
+    mean and 95th percentile of ``|sdf_S(x)| / D``, where ``sdf_S = min_b sdRoundCone_b`` is the
+    signed distance of the union (exact outside the silhouette, a lower bound inside).
+recon_rev_mean, recon_rev_p95
+    Silhouette -> mesh: samples of the silhouette's boundary (area-uniform on every round cone's
+    surface, keeping only those not strictly inside any primitive) to the mesh surface (exact
+    point-to-triangle distance), / D. A silhouette bulging out of the mesh is penalised here.
+recon_sym
+    ``(recon_mean + recon_rev_mean) / 2``.
+inside
+    Fraction of points along the bones (``bone_samples`` per bone at ``t = (k + 1/2) / n``) that
+    are inside the mesh. Inside-ness is decided by ray parity along three random directions
+    (majority vote), with the triangles bucketed in a 2D grid orthogonal to each ray: exact for
+    closed meshes (up to rays grazing an edge, which the vote absorbs) and O(points + faces).
+skeleton_components, skeleton_cycles
+    Connected components ``C`` of the joint graph and independent cycles ``B - J + C``.
+mesh_components, mesh_genus, mesh_boundaries, mesh_euler
+    Of the cleaned mesh (duplicate positions merged): per component ``chi = V - E + F`` and
+    ``g = (2 - chi - b) / 2`` with ``b`` boundary loops; genus and boundaries are summed.
+topology_match
+    ``skeleton_components == mesh_components and skeleton_cycles == mesh_genus``.
+joints, bones, leaves, branch_points
+    Sizes; leaves have degree 1, branch points degree >= 3.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from .errors import CurveSkelError
+from .mesh_graph import adjacency, unique_edges
+from .mesh_input import clean_mesh
+from .vertex_area import vertex_areas
+
+__all__ = ["quality", "sd_round_cone", "silhouette_sdf", "point_triangle_distance",
+           "mesh_distance", "winding_number", "sample_surface", "sample_silhouette_boundary", "inside_mesh",
+           "bone_points", "closest_mapping", "energy_measures", "skeleton_topology",
+           "mesh_topology"]
+
+#: Elements per temporary array in chunked pairwise evaluations (bounds memory to ~tens of MB).
+_CHUNK = 1 << 21
+
+
+# ---------------------------------------------------------------------------------------------
+# Round cones (one silhouette primitive per bone)
+# ---------------------------------------------------------------------------------------------
+def sd_round_cone(p, a, b, r1, r2):
+    """Exact signed distance from points to round cones (Inigo Quilez's sdRoundCone).
+
+    The round cone is the convex hull of the balls ``B(a, r1)`` and ``B(b, r2)``. All arguments
+    broadcast against each other (``p, a, b`` with a trailing axis of 3).
+
+    Parameters
+    ----------
+    p, a, b : (..., 3) float
+    r1, r2 : (...) float, >= 0
+
+    Returns
+    -------
+    (...) float
+        Negative inside, positive outside, exact on both sides. When one ball contains the other
+        (``|b - a| <= |r1 - r2|``) the shape is the larger ball.
+
+    Examples
+    --------
+    >>> float(sd_round_cone(np.array([0., 2, 0]), np.zeros(3), np.array([0., 0, 1]), 1.0, 1.0))
+    1.0
+    """
+    p, a, b = (np.asarray(x, dtype=np.float64) for x in (p, a, b))
+    r1 = np.asarray(r1, dtype=np.float64)
+    r2 = np.asarray(r2, dtype=np.float64)
+    ba = b - a
+    l2 = np.einsum("...i,...i->...", ba, ba)
+    rr = r1 - r2
+    a2 = l2 - rr * rr
+    pa = p - a
+    y = np.einsum("...i,...i->...", pa, ba)
+    z = y - l2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        il2 = 1.0 / l2
+        q = pa * l2[..., None] - ba * y[..., None]
+        x2 = np.einsum("...i,...i->...", q, q)
+        y2 = y * y * l2
+        z2 = z * z * l2
+        k = np.sign(rr) * rr * rr * x2
+        d_b = np.sqrt(x2 + z2) * il2 - r2
+        d_a = np.sqrt(x2 + y2) * il2 - r1
+        d_side = (np.sqrt(np.maximum(x2 * a2 * il2, 0.0)) + y * rr) * il2 - r1
+        d = np.where(np.sign(z) * a2 * z2 > k, d_b, np.where(np.sign(y) * a2 * y2 < k, d_a, d_side))
+    # One ball contains the other (or a == b): the larger ball.
+    degenerate = a2 <= 0
+    if np.any(degenerate):
+        big_at_a = r1 >= r2
+        centre = np.where(big_at_a[..., None], a, b)
+        rad = np.maximum(r1, r2)
+        d_ball = np.linalg.norm(p - centre, axis=-1) - rad
+        d = np.where(degenerate, d_ball, d)
+    return d
+
+
+def _primitives(joints, bones):
+    """(a, b, r1, r2) of every silhouette primitive: one per bone, one ball per bone-less joint."""
+    joints = np.asarray(joints, dtype=np.float64).reshape(-1, 4)
+    bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
+    lonely = np.setdiff1d(np.arange(len(joints)), bones.ravel())
+    i = np.concatenate([bones[:, 0], lonely])
+    j = np.concatenate([bones[:, 1], lonely])
+    r = np.abs(joints[:, 3])
+    return joints[i, :3], joints[j, :3], r[i], r[j]
+
+
+def _min_over_primitives(P, centres, rho, fn, *, k=8):
+    """Exact ``min_j fn(P_i, j)`` for every point, with pruning.
+
+    ``fn(pi, pj)`` evaluates the (signed) distance of points ``P[pi]`` to primitives ``pj``
+    (index arrays of equal length); it must satisfy ``fn >= |P_i - centres_j| - rho_j``
+    (the primitive lies in the ball ``B(centres_j, rho_j)``). Candidates are the k nearest
+    centres; a point is settled when ``|P - c_(k)| - max rho >= best``, else k grows.
+    Primitives with an outlying ``rho`` are evaluated for every point (brute force) so one huge
+    primitive does not defeat the pruning.
+
+    Returns
+    -------
+    best : (n,) float, arg : (n,) int
+    """
+    n, m = len(P), len(centres)
+    best = np.full(n, np.inf)
+    arg = np.full(n, -1, np.int64)
+    if n == 0 or m == 0:
+        return best, arg
+
+    def brute(ids):
+        step = max(1, _CHUNK // max(len(ids), 1))
+        for s in range(0, n, step):
+            pi = np.arange(s, min(s + step, n))
+            PI = np.repeat(pi, len(ids))
+            PJ = np.tile(ids, len(pi))
+            v = fn(PI, PJ).reshape(len(pi), len(ids))
+            a = np.argmin(v, axis=1)
+            vmin = v[np.arange(len(pi)), a]
+            upd = vmin < best[pi]
+            best[pi[upd]] = vmin[upd]
+            arg[pi[upd]] = ids[a[upd]]
+
+    if m <= 32:
+        brute(np.arange(m))
+        return best, arg
+    thr = max(3.0 * float(np.median(rho)), float(np.quantile(rho, 0.999)))
+    big = rho > thr
+    if big.any():
+        brute(np.flatnonzero(big))
+    small = np.flatnonzero(~big)
+    if small.size == 0:
+        return best, arg
+    tree = cKDTree(centres[small])
+    rmax = float(rho[small].max())
+    todo = np.arange(n)
+    kk = min(k, small.size)
+    while todo.size:
+        step = max(1, _CHUNK // kk)
+        settled = []
+        for s in range(0, todo.size, step):
+            pi = todo[s:s + step]
+            d, idx = tree.query(P[pi], k=kk)
+            d = d.reshape(len(pi), kk)
+            idx = idx.reshape(len(pi), kk)
+            pj = small[idx]
+            v = fn(np.repeat(pi, kk), pj.ravel()).reshape(len(pi), kk)
+            a = np.argmin(v, axis=1)
+            vmin = v[np.arange(len(pi)), a]
+            upd = vmin < best[pi]
+            best[pi[upd]] = vmin[upd]
+            arg[pi[upd]] = pj[np.arange(len(pi)), a][upd]
+            ok = (d[:, -1] - rmax >= best[pi]) if kk < small.size else np.ones(len(pi), bool)
+            settled.append(ok)
+        todo = todo[~np.concatenate(settled)]
+        kk = min(kk * 4, small.size)
+    return best, arg
+
+
+def silhouette_sdf(P, joints, bones):
+    """Signed distance of points to the silhouette (union of round cones): ``min_b sd_b``.
+
+    Exact outside the silhouette; inside it is the standard union bound (``|sdf|`` never exceeds
+    the true distance to the union's boundary).
+
+    Parameters
+    ----------
+    P : (n, 3) float
+    joints : (J, 4) float
+    bones : (B, 2) int
+
+    Returns
+    -------
+    (n,) float
+    """
+    P = np.asarray(P, dtype=np.float64).reshape(-1, 3)
+    a, b, r1, r2 = _primitives(joints, bones)
+    if len(a) == 0:
+        raise CurveSkelError("the skeleton has no joints")
+    centres = (a + b) / 2
+    rho = np.linalg.norm(b - a, axis=1) / 2 + np.maximum(r1, r2)
+
+    def fn(pi, pj):
+        return sd_round_cone(P[pi], a[pj], b[pj], r1[pj], r2[pj])
+
+    best, _ = _min_over_primitives(P, centres, rho, fn)
+    return best
+
+
+# ---------------------------------------------------------------------------------------------
+# Triangles
+# ---------------------------------------------------------------------------------------------
+def _dot(u, v):
+    return np.einsum("ij,ij->i", u, v)
+
+
+def point_triangle_distance(p, a, b, c):
+    """Exact distance from points to triangles, row by row (Ericson's closest-point regions).
+
+    Parameters
+    ----------
+    p, a, b, c : (n, 3) float
+
+    Returns
+    -------
+    (n,) float
+
+    Examples
+    --------
+    >>> z = np.zeros((1, 3)); e = np.eye(3)
+    >>> float(point_triangle_distance(np.array([[0.2, 0.2, 1.0]]), z, e[:1], e[1:2])[0])
+    1.0
+    """
+    p, a, b, c = (np.asarray(x, dtype=np.float64).reshape(-1, 3) for x in (p, a, b, c))
+    ab, ac = b - a, c - a
+    ap, bp, cp = p - a, p - b, p - c
+    d1, d2 = _dot(ab, ap), _dot(ac, ap)
+    d3, d4 = _dot(ab, bp), _dot(ac, bp)
+    d5, d6 = _dot(ab, cp), _dot(ac, cp)
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        den = va + vb + vc
+        v = vb / den
+        w = vc / den
+        q = a + ab * v[:, None] + ac * w[:, None]                                # face region
+        # edges (checked in reverse precedence so the earlier regions win)
+        wbc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        m = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
+        q = np.where(m[:, None], b + (c - b) * wbc[:, None], q)
+        wac = d2 / (d2 - d6)
+        m = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+        q = np.where(m[:, None], a + ac * wac[:, None], q)
+        vab = d1 / (d1 - d3)
+        m = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+        q = np.where(m[:, None], a + ab * vab[:, None], q)
+    q = np.where(((d6 >= 0) & (d5 <= d6))[:, None], c, q)
+    q = np.where(((d3 >= 0) & (d4 <= d3))[:, None], b, q)
+    q = np.where(((d1 <= 0) & (d2 <= 0))[:, None], a, q)
+    dist = np.linalg.norm(p - q, axis=1)
+    bad = ~np.isfinite(dist)
+    if bad.any():   # zero-area triangle: nearest of its three edges
+        dist[bad] = np.min([_point_segment_distance(p[bad], s, e)
+                            for s, e in ((a[bad], b[bad]), (b[bad], c[bad]), (a[bad], c[bad]))], axis=0)
+    return dist
+
+
+def _segment_param(p, s, e):
+    """Parameter u in [0, 1] of the closest point s + u (e - s) to p, row by row."""
+    d = e - s
+    dd = _dot(d, d)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.where(dd > 0, _dot(p - s, d) / dd, 0.0)
+    return np.clip(u, 0.0, 1.0)
+
+
+def _point_segment_distance(p, s, e):
+    u = _segment_param(p, s, e)
+    return np.linalg.norm(p - (s + (e - s) * u[:, None]), axis=1)
+
+
+def mesh_distance(P, V, F):
+    """Exact unsigned distance from points to a triangle mesh surface.
+
+    Candidate triangles come from a KD-tree on triangle centroids; a point is settled once no
+    remaining triangle can be closer (centroid distance minus the triangle's circumscribing
+    radius about its centroid). No Python loop over points.
+
+    Parameters
+    ----------
+    P : (n, 3) float
+    V : (nv, 3) float
+    F : (m, 3) int
+
+    Returns
+    -------
+    (n,) float
+    """
+    P = np.asarray(P, dtype=np.float64).reshape(-1, 3)
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    T = V[F]
+    cen = T.mean(axis=1)
+    rho = np.linalg.norm(T - cen[:, None, :], axis=2).max(axis=1)
+
+    def fn(pi, pj):
+        return point_triangle_distance(P[pi], T[pj, 0], T[pj, 1], T[pj, 2])
+
+    best, _ = _min_over_primitives(P, cen, rho, fn)
+    return best
+
+
+# ---------------------------------------------------------------------------------------------
+# Sampling
+# ---------------------------------------------------------------------------------------------
+def sample_surface(V, F, n, rng):
+    """``n`` area-uniform random points on a triangle mesh. Returns (n, 3)."""
+    T = np.asarray(V, dtype=np.float64)[np.asarray(F, dtype=np.int64)]
+    area = np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1) / 2
+    if not area.sum() > 0:
+        raise CurveSkelError("the mesh has no area to sample")
+    f = rng.choice(len(T), size=n, p=area / area.sum())
+    u, v = rng.random(n), rng.random(n)
+    flip = u + v > 1
+    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+    t = T[f]
+    return t[:, 0] + (t[:, 1] - t[:, 0]) * u[:, None] + (t[:, 2] - t[:, 0]) * v[:, None]
+
+
+def _unit_vectors(n, rng):
+    x = rng.normal(size=(n, 3))
+    return x / np.maximum(np.linalg.norm(x, axis=1, keepdims=True), 1e-300)
+
+
+def _orthonormal_frame(u):
+    """Two unit vectors (e1, e2) orthogonal to each unit row of u."""
+    ref = np.where((np.abs(u[:, 0]) < 0.9)[:, None], np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
+    e1 = np.cross(u, ref)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    return e1, np.cross(u, e1)
+
+
+def sample_silhouette_boundary(joints, bones, n, rng, *, tol=1e-7):
+    """Area-uniform samples of the boundary of the silhouette (union of round cones).
+
+    Candidate surfaces are every joint's sphere and every bone's lateral cone (the frustum
+    tangent to both end spheres); ``n`` candidates are drawn in proportion to area, and only
+    those not strictly inside any primitive (``sdf > -tol * size``) are kept, so the kept points
+    are area-uniform on the union's boundary.
+
+    Returns
+    -------
+    (k, 3) float, k <= n
+        Empty if every radius is zero (then the silhouette has no surface; see
+        :func:`bone_points`).
+    """
+    joints = np.asarray(joints, dtype=np.float64).reshape(-1, 4)
+    bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
+    r = np.abs(joints[:, 3])
+    x = joints[:, :3]
+    # lateral surfaces
+    a, b = x[bones[:, 0]], x[bones[:, 1]]
+    r1, r2 = r[bones[:, 0]], r[bones[:, 1]]
+    ba = b - a
+    L = np.linalg.norm(ba, axis=1)
+    has_side = L > np.abs(r1 - r2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sin = np.where(has_side, (r1 - r2) / L, 0.0)
+    cos = np.sqrt(np.maximum(1 - sin * sin, 0.0))
+    rho1, rho2 = r1 * cos, r2 * cos
+    side_area = np.where(has_side, np.pi * (rho1 + rho2) * L * cos, 0.0)
+    sphere_area = 4 * np.pi * r * r
+    areas = np.concatenate([sphere_area, side_area])
+    total = areas.sum()
+    if not total > 0:
+        return np.zeros((0, 3))
+    which = rng.choice(len(areas), size=n, p=areas / total)
+    on_sphere = which < len(r)
+    out = np.empty((n, 3))
+    js = which[on_sphere]
+    out[on_sphere] = x[js] + r[js, None] * _unit_vectors(js.size, rng)
+    bs = which[~on_sphere] - len(r)
+    if bs.size:
+        u = ba[bs] / L[bs, None]
+        e1, e2 = _orthonormal_frame(u)
+        ang = rng.random(bs.size) * 2 * np.pi
+        radial = np.cos(ang)[:, None] * e1 + np.sin(ang)[:, None] * e2
+        nrm = cos[bs, None] * radial + sin[bs, None] * u        # outward normal of the frustum
+        # s in [0, 1] with density proportional to the ring radius (1 - s) rho1 + s rho2
+        g = rng.random(bs.size)
+        p1, p2 = rho1[bs], rho2[bs]
+        s = (p1 + p2) * g / (p1 + np.sqrt(p1 * p1 + (p2 * p2 - p1 * p1) * g))
+        s = np.nan_to_num(s, nan=g)
+        start = a[bs] + r1[bs, None] * nrm
+        end = b[bs] + r2[bs, None] * nrm
+        out[~on_sphere] = start + (end - start) * s[:, None]
+    size = float(np.linalg.norm(np.ptp(x, axis=0))) + float(r.max())
+    keep = silhouette_sdf(out, joints, bones) > -tol * max(size, 1e-300)
+    return out[keep]
+
+
+def bone_points(joints, bones, per_bone=10):
+    """Points along every bone at ``t = (k + 1/2) / per_bone``; bone-less joints once each."""
+    joints = np.asarray(joints, dtype=np.float64).reshape(-1, 4)
+    bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
+    t = (np.arange(per_bone) + 0.5) / per_bone
+    xi, xj = joints[bones[:, 0], :3], joints[bones[:, 1], :3]
+    P = (t[None, :, None] * xi[:, None, :] + (1 - t)[None, :, None] * xj[:, None, :]).reshape(-1, 3)
+    lonely = np.setdiff1d(np.arange(len(joints)), bones.ravel())
+    return np.concatenate([P, joints[lonely, :3]])
+
+
+# ---------------------------------------------------------------------------------------------
+# Inside / outside
+# ---------------------------------------------------------------------------------------------
+def _ray_parity(P, V, F, R):
+    """Parity of crossings of the ray from each point along +x after rotating by R."""
+    Vr = V @ R.T
+    Pr = P @ R.T
+    T = Vr[F]                                      # (m, 3, 3)
+    yz = T[:, :, 1:]
+    lo = yz.min(axis=1)
+    hi = yz.max(axis=1)
+    glo = Vr[:, 1:].min(axis=0)
+    ghi = Vr[:, 1:].max(axis=0)
+    G = int(np.clip(np.sqrt(len(F)), 1, 1024))
+    cell = np.maximum((ghi - glo) / G, 1e-300)
+    i0 = np.clip(((lo - glo) / cell).astype(np.int64), 0, G - 1)
+    i1 = np.clip(((hi - glo) / cell).astype(np.int64), 0, G - 1)
+    ny = i1[:, 0] - i0[:, 0] + 1
+    nz = i1[:, 1] - i0[:, 1] + 1
+    cnt = ny * nz
+    tri = np.repeat(np.arange(len(F)), cnt)
+    k = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+    cy = i0[tri, 0] + k // nz[tri]
+    cz = i0[tri, 1] + k % nz[tri]
+    cid = cy * G + cz
+    order = np.argsort(cid, kind="stable")
+    tri_sorted = tri[order]
+    starts = np.concatenate([[0], np.cumsum(np.bincount(cid, minlength=G * G))])
+    parity = np.zeros(len(P), np.int64)
+    pin = np.all((Pr[:, 1:] >= glo) & (Pr[:, 1:] <= ghi), axis=1)
+    pids = np.flatnonzero(pin)
+    pc = np.clip(((Pr[pids, 1:] - glo) / cell).astype(np.int64), 0, G - 1)
+    pcell = pc[:, 0] * G + pc[:, 1]
+    n_per = starts[pcell + 1] - starts[pcell]
+    total = int(n_per.sum())
+    step = max(_CHUNK, 1)
+    # expand (point, triangle) pairs in chunks of points
+    cum = np.cumsum(n_per)
+    s = 0
+    while s < len(pids):
+        e = int(np.searchsorted(cum, (cum[s - 1] if s else 0) + step, side="right"))
+        e = max(e, s + 1)
+        sel = np.arange(s, min(e, len(pids)))
+        npp = n_per[sel]
+        pp = np.repeat(pids[sel], npp)
+        off = np.arange(npp.sum()) - np.repeat(np.cumsum(npp) - npp, npp)
+        tt = tri_sorted[np.repeat(starts[pcell[sel]], npp) + off]
+        t = T[tt]
+        py, pz = Pr[pp, 1], Pr[pp, 2]
+        y, z = t[:, :, 1], t[:, :, 2]
+        # edge functions of (py, pz) against the three edges in the yz-plane
+        w0 = (y[:, 1] - py) * (z[:, 2] - pz) - (y[:, 2] - py) * (z[:, 1] - pz)
+        w1 = (y[:, 2] - py) * (z[:, 0] - pz) - (y[:, 0] - py) * (z[:, 2] - pz)
+        w2 = (y[:, 0] - py) * (z[:, 1] - pz) - (y[:, 1] - py) * (z[:, 0] - pz)
+        hit = ((w0 > 0) & (w1 > 0) & (w2 > 0)) | ((w0 < 0) & (w1 < 0) & (w2 < 0))
+        ws = w0 + w1 + w2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xh = (w0 * t[:, 0, 0] + w1 * t[:, 1, 0] + w2 * t[:, 2, 0]) / ws
+        hit &= xh > Pr[pp, 0]
+        parity += np.bincount(pp[hit], minlength=len(P))
+        s = int(sel[-1]) + 1
+    del total
+    return parity % 2
+
+
+def inside_mesh(P, V, F, *, seed=0, n_rays=3):
+    """Whether each point is inside a closed triangle mesh (ray parity, majority of ``n_rays``).
+
+    Each ray direction is a random rotation (seeded), so rays along symmetry planes of a
+    procedural mesh do not graze its edges; a grazing ray can miscount, the vote absorbs it.
+
+    Parameters
+    ----------
+    P : (n, 3) float
+    V : (nv, 3) float
+    F : (m, 3) int
+    seed : int
+    n_rays : int, odd
+
+    Returns
+    -------
+    (n,) bool
+    """
+    P = np.asarray(P, dtype=np.float64).reshape(-1, 3)
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    rng = np.random.default_rng(seed)
+    votes = np.zeros(len(P), np.int64)
+    for _ in range(n_rays):
+        Q, Rm = np.linalg.qr(rng.normal(size=(3, 3)))
+        Q = Q * np.sign(np.diag(Rm))
+        votes += _ray_parity(P, V, F, Q)
+    return votes * 2 > n_rays
+
+
+def winding_number(P, V, F):
+    """Exact generalized winding number (Jacobson et al. 2013), chunked O(points x faces).
+
+    Slow on big meshes; :func:`inside_mesh` is the fast test. Used as a reference in tests.
+    """
+    P = np.asarray(P, dtype=np.float64).reshape(-1, 3)
+    T = np.asarray(V, dtype=np.float64)[np.asarray(F, dtype=np.int64)]
+    out = np.zeros(len(P))
+    step = max(1, _CHUNK // max(len(T), 1))
+    for s in range(0, len(P), step):
+        p = P[s:s + step, None, None, :]
+        A = T[None] - p                                # (c, m, 3, 3)
+        n = np.linalg.norm(A, axis=3)
+        a, b, c = A[:, :, 0], A[:, :, 1], A[:, :, 2]
+        la, lb, lc = n[:, :, 0], n[:, :, 1], n[:, :, 2]
+        det = np.einsum("...i,...i->...", a, np.cross(b, c))
+        den = (la * lb * lc + np.einsum("...i,...i->...", a, b) * lc
+               + np.einsum("...i,...i->...", b, c) * la + np.einsum("...i,...i->...", c, a) * lb)
+        out[s:s + step] = np.arctan2(det, den).sum(axis=1) / (2 * np.pi)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Energy, mapping, topology
+# ---------------------------------------------------------------------------------------------
+def closest_mapping(V, joints, bones):
+    """A skeleton mapping for skeletons that carry none: each vertex to its closest bone point.
+
+    Returns
+    -------
+    bone : (n,) int, t : (n,) float
+        With the convention of :class:`Skeleton`: ``sigma = t x_i + (1 - t) x_j``.
+    """
+    V = np.asarray(V, dtype=np.float64).reshape(-1, 3)
+    joints = np.asarray(joints, dtype=np.float64).reshape(-1, 4)
+    bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
+    if len(bones) == 0:
+        raise CurveSkelError("a skeleton without bones has no mapping")
+    xi, xj = joints[bones[:, 0], :3], joints[bones[:, 1], :3]
+
+    def fn(pi, pj):
+        return _point_segment_distance(V[pi], xj[pj], xi[pj])
+
+    _, arg = _min_over_primitives(V, (xi + xj) / 2, np.linalg.norm(xi - xj, axis=1) / 2, fn)
+    t = _segment_param(V, xj[arg], xi[arg])     # 0 at x_j, 1 at x_i
+    return arg, t
+
+
+def energy_measures(V, F, joints, bones, bone, t, D):
+    """Normalised energies: (vertex mean, area mean) of the squared residuals, / D^4."""
+    V = np.asarray(V, dtype=np.float64)
+    i, j = bones[bone, 0], bones[bone, 1]
+    sig = t[:, None] * joints[i, :3] + (1 - t[:, None]) * joints[j, :3]
+    rad = t * joints[i, 3] + (1 - t) * joints[j, 3]
+    e = np.sum((V - sig) ** 2, axis=1) - rad ** 2
+    a = vertex_areas(V, F)
+    D4 = D ** 4
+    return float(np.mean(e * e) / D4), float(np.sum(a * e * e) / (a.sum() * D4))
+
+
+def skeleton_topology(n_joints, bones):
+    """Components, independent cycles (B - J + C), leaves and branch points of a joint graph."""
+    bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
+    if n_joints == 0:
+        return {"skeleton_components": 0, "skeleton_cycles": 0, "leaves": 0, "branch_points": 0}
+    C, _ = connected_components(adjacency(n_joints, bones), directed=False)
+    deg = np.bincount(bones.ravel(), minlength=n_joints)
+    return {"skeleton_components": int(C), "skeleton_cycles": int(len(bones) - n_joints + C),
+            "leaves": int((deg == 1).sum()), "branch_points": int((deg >= 3).sum())}
+
+
+def mesh_topology(V, F):
+    """Components, Euler characteristic, boundary loops and genus of a mesh (duplicates merged).
+
+    Per component, ``chi = V - E + F`` and ``g = (2 - chi - b) / 2`` with ``b`` the boundary
+    loops (cycles of edges with one face); totals are summed over components.
+    """
+    cm = clean_mesh(V, F)
+    Vw, Fw = cm.V, cm.F
+    n = len(Vw)
+    E = np.concatenate([Fw[:, [0, 1]], Fw[:, [1, 2]], Fw[:, [2, 0]]])
+    E.sort(axis=1)
+    Eu, cnt = np.unique(E, axis=0, return_counts=True)
+    C, lab = connected_components(adjacency(n, Eu), directed=False)
+    nv = np.bincount(lab, minlength=C)
+    ne = np.bincount(lab[Eu[:, 0]], minlength=C)
+    nf = np.bincount(lab[Fw[:, 0]], minlength=C)
+    chi = nv - ne + nf
+    bnd = Eu[cnt == 1]
+    if len(bnd):
+        # boundary loops: components of the boundary-edge graph (vertices on the boundary only)
+        bv = np.unique(bnd)
+        loc = np.searchsorted(bv, bnd)
+        nb, blab = connected_components(adjacency(len(bv), loc), directed=False)
+        loop_comp = np.zeros(nb, np.int64)
+        loop_comp[blab] = lab[bv]
+        b = np.bincount(loop_comp, minlength=C)
+    else:
+        b = np.zeros(C, np.int64)
+    g = (2 - chi - b) // 2
+    return {"mesh_components": int(C), "mesh_euler": int(chi.sum()), "mesh_genus": int(g.sum()),
+            "mesh_boundaries": int(b.sum()), "mesh_nonmanifold_edges": int((cnt > 2).sum())}
+
+
+# ---------------------------------------------------------------------------------------------
+# All measures
+# ---------------------------------------------------------------------------------------------
+def quality(V, F, skeleton, *, n_samples=20000, seed=0, bone_samples=10) -> dict:
+    """Measures of a skeleton's quality against its mesh (see the module docstring).
+
+    Parameters
+    ----------
+    V : (n, 3) float
+        Mesh vertices (the skeleton's mapping, if any, is in this order).
+    F : (m, 3) int
+        Triangles.
+    skeleton : Skeleton or object with ``joints`` (J, 4) and ``bones`` (B, 2)
+        ``bone`` and ``t`` (per vertex) are used for the energies when present with one entry
+        per vertex; otherwise the closest-point mapping is used and ``energy_mapping`` says so.
+    n_samples : int
+        Samples of the mesh surface and (candidates) of the silhouette's boundary.
+    seed : int
+        Seed of every random choice; results are reproducible.
+    bone_samples : int
+        Points per bone for ``inside``.
+
+    Returns
+    -------
+    dict
+        Floats and ints, JSON-ready; keys as in the module docstring plus ``D`` and
+        ``seconds`` (time per measure group).
+
+    Examples
+    --------
+    >>> q = quality(V, F, skeletonize(V, F))                 # doctest: +SKIP
+    >>> q["recon_mean"], q["inside"], q["topology_match"]    # doctest: +SKIP
+    """
+    import time
+
+    V = np.asarray(V, dtype=np.float64).reshape(-1, 3)
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    joints = np.asarray(skeleton.joints, dtype=np.float64).reshape(-1, 4)
+    bones = np.asarray(skeleton.bones, dtype=np.int64).reshape(-1, 2)
+    if len(joints) == 0:
+        raise CurveSkelError("the skeleton has no joints")
+    used = np.unique(F)
+    D = float(np.linalg.norm(np.ptp(V[used], axis=0)))
+    if not D > 0:
+        raise CurveSkelError("the mesh has zero size")
+    rng = np.random.default_rng(seed)
+    out: dict = {"D": D}
+    secs: dict = {}
+
+    t0 = time.perf_counter()
+    bone = getattr(skeleton, "bone", None)
+    t = getattr(skeleton, "t", None)
+    if len(bones) and bone is not None and t is not None and len(bone) == len(V) and len(t) == len(V):
+        out["energy_mapping"] = "skeleton"
+        bone = np.asarray(bone, np.int64)
+        t = np.asarray(t, np.float64)
+    elif len(bones):
+        out["energy_mapping"] = "closest"
+        bone, t = closest_mapping(V, joints, bones)
+    if len(bones):
+        out["energy_vertex"], out["energy_area"] = energy_measures(V, F, joints, bones, bone, t, D)
+    else:
+        out["energy_mapping"] = "none"
+        out["energy_vertex"] = out["energy_area"] = float("nan")
+    secs["energy"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    S = sample_surface(V, F, n_samples, rng)
+    d = np.abs(silhouette_sdf(S, joints, bones)) / D
+    out["recon_mean"] = float(d.mean())
+    out["recon_p95"] = float(np.quantile(d, 0.95))
+    out["recon_max"] = float(d.max())
+    secs["recon"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    B = sample_silhouette_boundary(joints, bones, n_samples, rng)
+    if len(B) == 0:        # all radii zero: the silhouette is the curve itself
+        B = bone_points(joints, bones, max(1, n_samples // max(len(bones), 1)))
+    dr = mesh_distance(B, V, F) / D
+    out["recon_rev_mean"] = float(dr.mean())
+    out["recon_rev_p95"] = float(np.quantile(dr, 0.95))
+    out["recon_rev_max"] = float(dr.max())
+    out["recon_sym"] = (out["recon_mean"] + out["recon_rev_mean"]) / 2
+    secs["recon_rev"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    P = bone_points(joints, bones, bone_samples)
+    out["inside"] = float(inside_mesh(P, V, F, seed=seed).mean())
+    secs["inside"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    st = skeleton_topology(len(joints), bones)
+    mt = mesh_topology(V, F)
+    out.update(st)
+    out.update(mt)
+    out["topology_match"] = bool(st["skeleton_components"] == mt["mesh_components"]
+                                 and st["skeleton_cycles"] == mt["mesh_genus"])
+    out["joints"] = int(len(joints))
+    out["bones"] = int(len(bones))
+    secs["topology"] = time.perf_counter() - t0
+    out["seconds"] = secs
+    return out

@@ -1,0 +1,176 @@
+"""Re-fitting the skeleton mapping sigma between solver steps (paper, section 6, future work 1).
+
+Why: the paper keeps sigma (each vertex's bone and t) fixed at the first approximation's
+contour-line mapping, so a joint that moves keeps "owning" vertices that are now closer to a
+neighbouring bone, and the optimum of E is an optimum for a poor mapping. Between solver steps
+we move each vertex to the closest point of the bones *near its current bone* (its own bone and
+the bones sharing a joint with it), so a vertex migrates at most one bone per re-fit and the
+topology of the mapping follows the skeleton continuously.
+
+Which point is chosen, and why E never increases
+-------------------------------------------------
+The candidate is the **closest point** (Euclidean projection, ``t`` clamped to [0, 1], eq. 19
+convention ``t = 1`` at joint ``i``), not the argmin of the vertex's energy term: minimising
+``e_v^2`` over the bones would let a vertex slide to wherever some swept sphere happens to pass
+through it, which is the silhouette-distance measure the paper rejects (its Fig. 2). The closest
+point is then accepted **per vertex only when it strictly lowers that vertex's term**
+``w_v e_v^2``; otherwise the vertex keeps its current (bone, t). E is a sum of these terms, so a
+re-fit never raises E, and every change lowers it (so re-fits cannot cycle).
+
+The projection is implemented here (vectorised, one pass per candidate slot) so this module does
+not depend on :mod:`.mapping`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .energy import bone_terms
+from .problem import FitProblem
+
+__all__ = ["bone_neighbours", "project_on_bones", "refit_mapping"]
+
+
+def bone_neighbours(bones: np.ndarray, n_joints: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """For each bone: itself, then every other bone sharing a joint with it.
+
+    Parameters
+    ----------
+    bones : (B, 2) int
+    n_joints : int, optional
+
+    Returns
+    -------
+    table : (B, K) int
+        Row ``b`` starts with ``b``; padded with ``b`` after ``count[b]`` entries.
+    count : (B,) int
+        Number of distinct candidates of each bone (>= 1).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> table, count = bone_neighbours(np.array([[0, 1], [1, 2], [2, 3]]))
+    >>> table.tolist(), count.tolist()
+    ([[0, 1, 0], [1, 0, 2], [2, 1, 2]], [2, 3, 2])
+    """
+    bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
+    B = len(bones)
+    if B == 0:
+        return np.zeros((0, 1), np.int64), np.zeros(0, np.int64)
+    nj = int(bones.max()) + 1 if n_joints is None else int(n_joints)
+    incident: list[list[int]] = [[] for _ in range(nj)]
+    for b, (i, j) in enumerate(bones.tolist()):
+        incident[i].append(b)
+        if j != i:
+            incident[j].append(b)
+    rows = []
+    for b, (i, j) in enumerate(bones.tolist()):
+        seen = dict.fromkeys([b] + incident[i] + incident[j])
+        rows.append(list(seen))
+    count = np.array([len(r) for r in rows], np.int64)
+    table = np.empty((B, int(count.max())), np.int64)
+    for b, r in enumerate(rows):
+        table[b, :len(r)] = r
+        table[b, len(r):] = b
+    return table, count
+
+
+def project_on_bones(points: np.ndarray, joints: np.ndarray, bones: np.ndarray,
+                     bone_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Closest point of bone ``bone_ids[v]`` to each point.
+
+    Parameters
+    ----------
+    points : (m, 3) float
+    joints : (J, 4) float
+    bones : (B, 2) int
+    bone_ids : (m,) int
+
+    Returns
+    -------
+    t : (m,) float
+        Clamped to [0, 1]; ``sigma = t x_i + (1 - t) x_j``. 0.5 on a zero-length bone.
+    dist2 : (m,) float
+        Squared distance to that closest point.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> J = np.array([[0, 0, 2.0, 1], [0, 0, 0.0, 1]])
+    >>> project_on_bones(np.array([[1, 0, 1.5], [0, 0, 3.0]]), J, np.array([[0, 1]]), np.array([0, 0]))
+    (array([0.75, 1.  ]), array([1., 1.]))
+    """
+    X = joints[:, :3]
+    xj = X[bones[:, 1]]
+    u = X[bones[:, 0]] - xj
+    uu = np.einsum("ij,ij->i", u, u)
+    inv = np.divide(1.0, uu, out=np.zeros_like(uu), where=uu > 0)
+    a = points - xj[bone_ids]
+    ub = u[bone_ids]
+    t = np.einsum("ij,ij->i", a, ub) * inv[bone_ids]
+    t = np.where(uu[bone_ids] > 0, np.clip(t, 0.0, 1.0), 0.5)
+    a -= t[:, None] * ub
+    return t, np.einsum("ij,ij->i", a, a)
+
+
+def refit_mapping(pr: FitProblem, neighbours: tuple[np.ndarray, np.ndarray] | None = None,
+                  e_old: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Move each vertex to the closest point of its bone's neighbourhood where that lowers E.
+
+    Parameters
+    ----------
+    pr : FitProblem
+        Current joints and mapping (not modified).
+    neighbours : (table, count), optional
+        :func:`bone_neighbours` of ``pr.bones`` (pass it to avoid rebuilding it every call).
+    e_old : (n,) float, optional
+        Current residuals, if already known.
+
+    Returns
+    -------
+    bone : (n,) int
+    t : (n,) float
+        The new mapping (new arrays; vertices that did not change keep their old values).
+    e : (n,) float
+        Residuals under the new mapping (``E = sum w e^2`` never exceeds the old E).
+    changed : int
+        Number of vertices whose mapping changed.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from curveskel_addon.core.problem import FitProblem
+    >>> J = np.array([[0, 0, 0, 1.0], [0, 0, 1, 1.0], [0, 0, 2, 1.0]])
+    >>> pr = FitProblem(np.array([[1.0, 0, 1.5]]), np.ones(1), J, np.array([[0, 1], [1, 2]]),
+    ...                 np.array([0]), np.array([0.9]))     # mapped to the wrong bone
+    >>> bone, t, e, changed = refit_mapping(pr)
+    >>> bone.tolist(), t.tolist(), e.tolist(), changed
+    ([1], [0.5], [0.0], 1)
+    """
+    table, count = bone_neighbours(pr.bones, len(pr.joints)) if neighbours is None else neighbours
+    if e_old is None:
+        e_old = bone_terms(pr)[4]
+    P, bone = pr.points, pr.bone
+    best_b = bone.copy()
+    best_t, best_d2 = project_on_bones(P, pr.joints, pr.bones, bone)
+    if table.shape[1] > 1:
+        c = count[bone]
+        order = np.argsort(-c, kind="stable")
+        c_sorted = c[order]
+        for k in range(1, table.shape[1]):
+            m = int(np.searchsorted(-c_sorted, -k, side="left"))   # points with count > k
+            if m == 0:
+                break
+            sub = order[:m]
+            cb = table[bone[sub], k]
+            tk, d2k = project_on_bones(P[sub], pr.joints, pr.bones, cb)
+            better = d2k < best_d2[sub]
+            sb = sub[better]
+            best_b[sb], best_t[sb], best_d2[sb] = cb[better], tk[better], d2k[better]
+    cand = FitProblem(P, pr.weights, pr.joints, pr.bones, best_b, best_t)
+    e_new = bone_terms(cand)[4]
+    take = np.abs(e_new) < np.abs(e_old)
+    new_bone = np.where(take, best_b, bone)
+    new_t = np.where(take, best_t, pr.t)
+    changed = int(np.count_nonzero(take & ((new_bone != bone) | (new_t != pr.t))))
+    return new_bone, new_t, np.where(take, e_new, e_old), changed

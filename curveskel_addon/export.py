@@ -1,0 +1,76 @@
+"""Export a rigged mesh and its armature with Blender's own glTF (.glb) and FBX exporters."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import bpy
+
+from .core.errors import CurveSkelError
+
+__all__ = ["export_rig", "FORMATS"]
+
+#: file suffix -> format
+FORMATS = {".glb": "GLB", ".fbx": "FBX"}
+
+
+def export_rig(context, mesh_obj, arm_obj, filepath, *, fmt: str | None = None) -> dict:
+    """Write ``mesh_obj`` (skinned) and ``arm_obj`` to ``filepath``; only these two are exported.
+
+    Parameters
+    ----------
+    context : bpy.types.Context
+    mesh_obj : bpy.types.Object
+        A mesh bound to ``arm_obj`` (see :func:`binding.bind_mesh`).
+    arm_obj : bpy.types.Object
+        Its armature.
+    filepath : str or Path
+    fmt : {"GLB", "FBX"}, optional
+        Default from the suffix (.glb, .fbx).
+
+    Returns
+    -------
+    dict
+        ``path``, ``format``, ``bones``, ``vertices``, ``seconds``.
+
+    Raises
+    ------
+    CurveSkelError
+        Unknown format, or the exporter failing.
+    """
+    path = Path(filepath)
+    fmt = (fmt or FORMATS.get(path.suffix.lower(), "")).upper()
+    if fmt not in FORMATS.values():
+        raise CurveSkelError(f"cannot export '{path.name}': use a .glb or .fbx file")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    vl = context.view_layer
+    prev_sel = [o for o in vl.objects if o.select_get()]
+    prev_active = vl.objects.active
+    if prev_active is not None and prev_active.mode != 'OBJECT':
+        bpy.ops.object.mode_set(mode='OBJECT')
+    t0 = time.perf_counter()
+    try:
+        for o in prev_sel:
+            o.select_set(False)
+        for o in (mesh_obj, arm_obj):
+            o.select_set(True)
+        vl.objects.active = arm_obj
+        if fmt == "GLB":
+            bpy.ops.export_scene.gltf(filepath=str(path), export_format='GLB', use_selection=True,
+                                      export_skins=True, export_animations=False,
+                                      export_def_bones=False)
+        else:
+            bpy.ops.export_scene.fbx(filepath=str(path), use_selection=True,
+                                     object_types={'ARMATURE', 'MESH'}, add_leaf_bones=False,
+                                     bake_anim=False, use_armature_deform_only=False)
+    except RuntimeError as exc:
+        raise CurveSkelError(f"{fmt} export to '{path}' failed: {exc}") from exc
+    finally:
+        for o in vl.objects:
+            o.select_set(o in prev_sel)
+        vl.objects.active = prev_active
+    if not path.is_file():
+        raise CurveSkelError(f"{fmt} export wrote no file at '{path}'")
+    return {"path": str(path), "format": fmt, "bones": len(arm_obj.data.bones),
+            "vertices": len(mesh_obj.data.vertices), "seconds": time.perf_counter() - t0}

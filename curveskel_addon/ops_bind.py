@@ -1,0 +1,107 @@
+"""CURVESKEL_OT_bind: skin the active mesh to its curveskel armature (one undo step)."""
+
+from __future__ import annotations
+
+import bpy
+from bpy.props import EnumProperty, FloatProperty, StringProperty
+
+from .armature import is_curveskel_armature
+from .binding import bind_mesh
+from .core.errors import CurveSkelError
+
+__all__ = ["CURVESKEL_OT_bind", "CLASSES", "bind_targets"]
+
+
+def bind_targets(context, armature_name: str = ""):
+    """(mesh, armature, problem) for binding.
+
+    The mesh is the active object, or the selected mesh when the active object is the armature
+    (Blender's usual "select the mesh, then the armature" order). The armature is, in order: the
+    one named ``armature_name``, a selected curveskel armature, the result made from the mesh
+    ("<mesh>.skeleton" in the CurveSkel collection).
+    """
+    ob = context.active_object
+    sel = list(getattr(context, "selected_objects", []) or [])
+    mesh = None
+    if ob is not None and ob.type == 'MESH':
+        mesh = ob
+    elif is_curveskel_armature(ob):
+        meshes = [o for o in sel if o.type == 'MESH']
+        mesh = meshes[0] if len(meshes) == 1 else None
+    if mesh is None:
+        return None, None, "Make a mesh active (or select it, then its curveskel armature)"
+    arm = None
+    if armature_name:
+        arm = bpy.data.objects.get(armature_name)
+        if not is_curveskel_armature(arm):
+            return mesh, None, f"'{armature_name}' is not a curveskel armature"
+    if arm is None:
+        arms = [o for o in sel if is_curveskel_armature(o)]
+        arm = arms[0] if len(arms) == 1 else None
+    if arm is None:
+        cand = [o for o in bpy.data.objects
+                if is_curveskel_armature(o) and o.get("curveskel_source") == mesh.name]
+        arm = next((o for o in cand if o.name == f"{mesh.name}.skeleton"), cand[0] if cand else None)
+    if arm is None:
+        return mesh, None, f"No curveskel armature for '{mesh.name}': generate one first, or select one"
+    return mesh, arm, None
+
+
+class CURVESKEL_OT_bind(bpy.types.Operator):
+    """Bind the mesh to its curveskel armature: an Armature modifier and one vertex group per bone.
+    Re-binding replaces only what curveskel added before"""
+
+    bl_idname = "curveskel.bind"
+    bl_label = "Bind Mesh to Skeleton"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    armature: StringProperty(
+        name="Armature", default="",
+        description="CurveSkel armature to bind to (empty: the selected one, or the mesh's own result)")
+    method: EnumProperty(
+        name="Weights", default="MAPPING",
+        items=(("MAPPING", "Skeleton Mapping", "Weights from the skeleton mapping: each vertex follows "
+                "its bone, blended near joints (fast)"),
+               ("HEAT", "Heat (Blender)", "Blender's automatic heat weights, for comparison "
+                "(slow on large meshes)")))
+    blend: FloatProperty(
+        name="Blend Width", default=0.25, min=0.0, max=0.5, subtype='FACTOR',
+        description="Width of the smooth blend at each joint, as a fraction of the bone's length")
+
+    @classmethod
+    def poll(cls, context):
+        _, _, problem = bind_targets(context)
+        if problem is not None:
+            cls.poll_message_set(problem)
+            return False
+        return True
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.prop(self, "method")
+        row = layout.row()
+        row.active = self.method == "MAPPING"
+        row.prop(self, "blend")
+
+    def execute(self, context):
+        mesh, arm, problem = bind_targets(context, self.armature)
+        if problem is not None:
+            self.report({'ERROR'}, problem)
+            return {'CANCELLED'}
+        if mesh.mode != 'OBJECT':
+            bpy.ops.object.mode_set(mode='OBJECT')
+        try:
+            fig = bind_mesh(mesh, arm, None, blend=self.blend, method=self.method)
+        except CurveSkelError as exc:
+            self.report({'ERROR'}, f"CurveSkel bind '{mesh.name}': {exc}")
+            return {'CANCELLED'}
+        for w in fig["warnings"]:
+            self.report({'WARNING'}, f"CurveSkel bind '{mesh.name}': {w}")
+        self.report({'INFO'}, f"CurveSkel: bound '{mesh.name}' to '{arm.name}' "
+                              f"({fig['groups']} groups, {fig['vertices']} vertices, "
+                              f"{fig['method'].lower()} weights, {fig['seconds']:.2f} s)")
+        return {'FINISHED'}
+
+
+CLASSES = (CURVESKEL_OT_bind,)

@@ -1,0 +1,273 @@
+"""CURVESKEL_OT_generate: the active mesh -> core -> armature + silhouette in "CurveSkel".
+
+Thin on purpose: read properties and the evaluated mesh, call the core, build objects, report.
+"""
+
+from __future__ import annotations
+
+import time
+
+import bpy
+
+from . import results
+from .armature import build_armature
+from .binding import bind_mesh
+from .core import CurveSkelError, SkeletonRun
+from .mesh_read import evaluated_triangles
+from .preferences import get_preferences
+from .properties import OPTION_NAMES, PARAM_NAMES, GenerateSettings, settings_dict, skeleton_params
+from .silhouette import build_silhouette, update_silhouette
+
+__all__ = ["CURVESKEL_OT_generate", "input_problem", "build_result", "CLASSES"]
+
+# Share of the progress bar (0..100) each core stage fills.
+_PROGRESS_SPAN = {"first_approximation": (0.0, 40.0), "optimise": (40.0, 100.0)}
+
+
+def input_problem(context) -> str | None:
+    """Why the operator cannot run in ``context`` (None when it can)."""
+    ob = context.active_object
+    if ob is None:
+        return "No active object: select a mesh object to skeletonize"
+    if ob.type != 'MESH':
+        return f"Active object '{ob.name}' is {ob.type.lower()}, not a mesh: select a mesh object"
+    if context.mode != 'OBJECT':
+        return "Switch to Object Mode to generate a curve-skeleton"
+    return None
+
+
+def _progress(wm):
+    def progress(stage: str, fraction: float) -> None:
+        lo, hi = _PROGRESS_SPAN.get(stage, (0.0, 100.0))
+        wm.progress_update(lo + (hi - lo) * min(max(fraction, 0.0), 1.0))
+    return progress
+
+
+def _describe(name: str, skeleton, seconds: float, stopped: bool = False) -> str:
+    s = skeleton.summary()
+    how = "stopped after" if stopped else "in"
+    return (f"CurveSkel '{name}': {s['joints']} joints, {s['bones']} bones, "
+            f"E0 {s['E0']:.4g} -> E {s['E']:.4g} {how} {s['iterations']} iterations, {seconds:.2f} s")
+
+
+def build_result(context, src, skeleton, options: dict, *, live_silhouette=None,
+                 stopped: bool = False) -> dict:
+    """Create the armature and/or silhouette of ``skeleton`` for ``src``; replace its previous result.
+
+    On any failure everything made here is removed again and the exception propagates, so the
+    scene is left as it was. Returns ``{"armature": ob or None, "silhouette": ob or None}``.
+    """
+    arm_name, sil_name = results.result_names(src.name)
+    made = []
+    # The previous result steps aside (renamed) so the new objects get the exact names; it is
+    # deleted once the new result is complete, or renamed back if anything fails.
+    previous = {ob: ob.name for ob in results.previous_results(src.name, keep=(live_silhouette,))}
+    for ob, name in previous.items():
+        ob.name = name + ".previous"
+    try:
+        coll = results.collection(context)
+        roots = results.root_joints(skeleton)
+        mw = src.matrix_world.copy()
+        arm = sil = None
+        if options["make_armature"]:
+            arm = build_armature(context, skeleton, arm_name, coll, mw)
+            made.append(arm)
+            results.tag(arm, src.name, "armature")
+        if live_silhouette is not None:
+            sil = live_silhouette
+            update_silhouette(sil, skeleton, roots=roots)
+            sil.hide_render = not options["silhouette_in_render"]
+            results.adopt_names(sil, sil_name)
+        elif options["make_silhouette"]:
+            sil = build_silhouette(skeleton, sil_name, coll, mw, roots=roots,
+                                   in_render=options["silhouette_in_render"])
+            made.append(sil)
+            results.tag(sil, src.name, "silhouette")
+        params = {k: options[k] for k in PARAM_NAMES}
+        for ob in (arm, sil):
+            if ob is not None:
+                results.store_figures(ob, skeleton, params=params, stopped=stopped)
+        if options["bind"] and arm is not None:
+            bind_mesh(src, arm, skeleton)   # uses the mapping when it matches the mesh's vertices
+    except BaseException:
+        results.remove_objects(made)
+        for ob, name in previous.items():
+            ob.name = name
+        raise
+    finally:
+        _make_active(context, src)
+    results.remove_objects(previous)
+    for ob, name in ((arm, arm_name), (sil, sil_name)):
+        if ob is not None:
+            results.adopt_names(ob, name)     # data names too, now the old data are gone
+    return {"armature": arm, "silhouette": sil}
+
+
+def _make_active(context, ob) -> None:
+    if ob is None or ob.name not in context.view_layer.objects:
+        return
+    if context.view_layer.objects.active is not None and context.view_layer.objects.active.mode != 'OBJECT':
+        bpy.ops.object.mode_set(mode='OBJECT')
+    context.view_layer.objects.active = ob
+
+
+class CURVESKEL_OT_generate(GenerateSettings, bpy.types.Operator):
+    """Fit a curve-skeleton to the active mesh: an armature and a Skin-modifier silhouette in the
+    "CurveSkel" collection (the mesh itself is not changed)"""
+
+    bl_idname = "curveskel.generate"
+    bl_label = "Generate Curve-Skeleton"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context):
+        problem = input_problem(context)
+        if problem is not None:
+            cls.poll_message_set(problem)
+            return False
+        return True
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        col = layout.column()
+        for name in PARAM_NAMES:
+            col.prop(self, name)
+        col = layout.column(heading="Create")
+        col.prop(self, "make_armature")
+        col.prop(self, "make_silhouette")
+        col.prop(self, "silhouette_in_render")
+        col.prop(self, "bind")
+        col = layout.column(heading="Watch")
+        col.prop(self, "interactive")
+        sub = col.column()
+        sub.active = self.interactive
+        sub.prop(self, "update_every")
+
+    # -- entry points ---------------------------------------------------------------------------
+    def invoke(self, context, event):
+        prefs = get_preferences(context)
+        if prefs is not None:
+            for name in PARAM_NAMES + OPTION_NAMES:
+                if not self.properties.is_property_set(name):
+                    setattr(self, name, getattr(prefs, name))
+        if self.interactive and not bpy.app.background and context.window is not None:
+            return self._modal_start(context)
+        return self.execute(context)
+
+    def execute(self, context):
+        src = self._checked_source(context)
+        if src is None:
+            return {'CANCELLED'}
+        t0 = time.perf_counter()
+        wm = context.window_manager
+        wm.progress_begin(0, 100)
+        try:
+            V, F = evaluated_triangles(src, context.evaluated_depsgraph_get())
+            skeleton = SkeletonRun(V, F, skeleton_params(self), _progress(wm)).result()
+        except CurveSkelError as exc:
+            self.report({'ERROR'}, f"CurveSkel '{src.name}': {exc}")
+            return {'CANCELLED'}
+        finally:
+            wm.progress_end()
+        return self._finish(context, src, skeleton, t0)
+
+    # -- interactive mode: a timer steps the solver, the silhouette follows, Esc stops ----------
+    def _modal_start(self, context):
+        src = self._checked_source(context)
+        if src is None:
+            return {'CANCELLED'}
+        self._t0 = time.perf_counter()
+        wm = context.window_manager
+        try:
+            V, F = evaluated_triangles(src, context.evaluated_depsgraph_get())
+            self._run = SkeletonRun(V, F, skeleton_params(self), _progress(wm))
+            first = self._run.current_skeleton()
+            self._roots = results.root_joints(first)
+            _, sil_name = results.result_names(src.name)
+            self._live = build_silhouette(first, sil_name, results.collection(context),
+                                          src.matrix_world.copy(), roots=self._roots,
+                                          in_render=self.silhouette_in_render)
+            results.tag(self._live, src.name, "silhouette")
+        except CurveSkelError as exc:
+            self.report({'ERROR'}, f"CurveSkel '{src.name}': {exc}")
+            return {'CANCELLED'}
+        self._src_name = src.name
+        self._steps = self._run.steps()
+        self._state = None
+        wm.progress_begin(0, 100)
+        self._timer = wm.event_timer_add(0.02, window=context.window)
+        wm.modal_handler_add(self)
+        self._status(context, "first approximation")
+        return {'RUNNING_MODAL'}
+
+    def modal(self, context, event):
+        if event.type == 'ESC' and event.value == 'PRESS':
+            return self._modal_end(context, stopped=True)
+        if event.type != 'TIMER':
+            return {'PASS_THROUGH'}       # the view can still be orbited and zoomed
+        try:
+            for _ in range(self.update_every):
+                self._state = next(self._steps, None)
+                if self._state is None or self._state.done:
+                    return self._modal_end(context, stopped=False)
+            update_silhouette(self._live, self._run.current_skeleton())
+        except CurveSkelError as exc:
+            self._modal_cleanup(context)
+            results.remove_objects([self._live])
+            self.report({'ERROR'}, f"CurveSkel '{self._src_name}': {exc}")
+            return {'CANCELLED'}
+        st = self._state
+        self._status(context, f"iteration {st.iteration}, E = {st.energy:.4g} (Esc to stop)")
+        return {'RUNNING_MODAL'}
+
+    def _modal_end(self, context, *, stopped: bool):
+        self._steps.close()
+        self._modal_cleanup(context)
+        src = bpy.data.objects.get(self._src_name)
+        skeleton = self._run.current_skeleton()    # the solvers only ever lower E: the best so far
+        if src is None:
+            results.remove_objects([self._live])
+            self.report({'ERROR'}, f"CurveSkel: the source object '{self._src_name}' is gone")
+            return {'CANCELLED'}
+        live = self._live
+        if not self.make_silhouette:
+            results.remove_objects([live])
+            live = None
+        return self._finish(context, src, skeleton, self._t0, live=live, stopped=stopped)
+
+    def _modal_cleanup(self, context) -> None:
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        self._status(context, None)
+
+    def _status(self, context, text) -> None:
+        if context.area is not None:
+            context.area.header_text_set(None if text is None else f"CurveSkel: {text}")
+
+    # -- shared ---------------------------------------------------------------------------------
+    def _checked_source(self, context):
+        problem = input_problem(context)
+        if problem is None and not (self.make_armature or self.make_silhouette):
+            problem = "Nothing to create: enable Armature or Silhouette"
+        if problem is not None:
+            self.report({'ERROR'}, problem)
+            return None
+        return context.active_object
+
+    def _finish(self, context, src, skeleton, t0, *, live=None, stopped=False):
+        try:
+            build_result(context, src, skeleton, settings_dict(self), live_silhouette=live,
+                         stopped=stopped)
+        except (CurveSkelError, RuntimeError, ValueError) as exc:
+            if live is not None:
+                results.remove_objects([live])
+            self.report({'ERROR'}, f"CurveSkel '{src.name}': could not build the result: {exc}")
+            return {'CANCELLED'}
+        self.report({'INFO'}, _describe(src.name, skeleton, time.perf_counter() - t0, stopped))
+        return {'FINISHED'}
+
+
+CLASSES = (CURVESKEL_OT_generate,)

@@ -1,0 +1,94 @@
+"""Properties shared by the operator, the sidebar panel (scene settings) and the preferences.
+
+``GenerateSettings`` is a mixin of property annotations: the operator, the scene's
+``CurveSkelSceneSettings`` and the add-on preferences all inherit it, so every parameter is
+declared once, with its default taken from :class:`core.SkeletonParams`.
+"""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
+
+from .core.params import SOLVERS, SkeletonParams
+
+__all__ = ["GenerateSettings", "CurveSkelSceneSettings", "PARAM_NAMES", "OPTION_NAMES",
+           "settings_dict", "skeleton_params", "CLASSES"]
+
+_D = SkeletonParams()
+
+_SOLVER_ITEMS = {
+    "lm": ("lm", "Levenberg-Marquardt", "Damped Gauss-Newton on the joints: converges in few iterations"),
+    "paper": ("paper", "Gradient descent (paper)",
+              "Gradient descent with exact line search, stopped as in the paper"),
+}
+
+
+def _solver_items():
+    return [_SOLVER_ITEMS.get(s, (s, s, s)) for s in SOLVERS]
+
+
+class GenerateSettings:
+    """Parameters of one CurveSkel run (annotations only; inherited, never registered alone)."""
+
+    spacing: FloatProperty(
+        name="Contour Spacing", description="Distance between level-set contours, as a fraction of "
+        "each part's bounding-box diagonal. Smaller gives more joints",
+        default=_D.spacing, min=0.001, max=0.5, soft_min=0.005, soft_max=0.2, step=0.1, precision=3)
+    solver: EnumProperty(name="Solver", description="Optimisation method for the joints",
+                         items=_solver_items(), default=_D.solver)
+    max_iterations: IntProperty(name="Iterations", description="Maximum number of optimisation "
+                                "iterations (0 keeps the first approximation)",
+                                default=_D.max_iterations, min=0, soft_max=1000)
+    tolerance: FloatProperty(name="Tolerance", description="Stop when one iteration lowers the "
+                             "energy by less than this fraction of the initial energy",
+                             default=_D.tolerance, min=1e-9, max=1.0, precision=6, step=0.01)
+    seed: IntProperty(name="Seed", description="Seed of the pole search (results are reproducible)",
+                      default=_D.seed, min=0)
+    make_armature: BoolProperty(name="Armature", description="Create an armature from the skeleton",
+                                default=True)
+    make_silhouette: BoolProperty(name="Silhouette", description="Create an edge mesh with a Skin "
+                                  "modifier showing the joints' radii", default=True)
+    silhouette_in_render: BoolProperty(name="Render Silhouette",
+                                       description="Show the silhouette in renders", default=False)
+    bind: BoolProperty(name="Bind Mesh", description="Parent the mesh to the armature with "
+                       "vertex weights from the skeleton mapping (adds an Armature modifier)",
+                       default=False)
+    interactive: BoolProperty(name="Interactive", description="Watch the optimisation: the "
+                              "silhouette updates while it runs, Esc stops it and keeps the skeleton "
+                              "so far (ignored in background mode)", default=False)
+    update_every: IntProperty(name="Update Every", description="Iterations between silhouette "
+                              "updates in interactive mode", default=2, min=1, soft_max=50)
+
+
+#: Properties that are parameters of the core (SkeletonParams fields).
+PARAM_NAMES = ("spacing", "solver", "max_iterations", "tolerance", "seed")
+#: Properties of the Blender side of a run.
+OPTION_NAMES = ("make_armature", "make_silhouette", "silhouette_in_render", "bind", "interactive",
+                "update_every")
+
+
+def _decimal(value):
+    """A float property's value as the decimal the user typed: Blender stores floats in single
+    precision (0.04 reads back as 0.03999999910593033), the core and the command line use 0.04."""
+    if isinstance(value, float):
+        return float(str(np.float32(value)))
+    return value
+
+
+def settings_dict(src) -> dict:
+    """Every GenerateSettings value of an operator, scene settings or preferences, by name."""
+    return {name: _decimal(getattr(src, name)) for name in PARAM_NAMES + OPTION_NAMES}
+
+
+def skeleton_params(src) -> SkeletonParams:
+    """The core parameters named by GenerateSettings properties; other fields keep their defaults."""
+    return SkeletonParams.from_dict({name: _decimal(getattr(src, name)) for name in PARAM_NAMES})
+
+
+class CurveSkelSceneSettings(GenerateSettings, bpy.types.PropertyGroup):
+    """The sidebar panel's parameters, stored per scene (``scene.curveskel``)."""
+
+
+CLASSES = (CurveSkelSceneSettings,)

@@ -1,0 +1,81 @@
+"""The silhouette: joints as vertices, bones as edges, a Skin modifier with the joints' radii."""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+__all__ = ["build_silhouette", "update_silhouette", "SKIN_MODIFIER", "SMOOTH_MODIFIER"]
+
+SKIN_MODIFIER = "CurveSkel Skin"
+SMOOTH_MODIFIER = "CurveSkel Smooth"
+
+
+def build_silhouette(skeleton, name: str, collection, matrix_world, *, roots=(),
+                     in_render: bool = False) -> bpy.types.Object:
+    """A new mesh object showing ``skeleton`` as the Skin modifier's surface.
+
+    Parameters
+    ----------
+    skeleton : core.Skeleton
+        Joints (J, 4) become vertices with Skin radius r; bones (B, 2) become edges.
+    name : str
+        Name of the object and of its mesh.
+    collection : bpy.types.Collection
+        Where the object is linked.
+    matrix_world : mathutils.Matrix
+        The source object's transform (the skeleton is in the source's local space).
+    roots : sequence of int
+        Joints marked as Skin roots (one per connected part).
+    in_render : bool
+        Whether the silhouette shows in renders.
+
+    Returns
+    -------
+    bpy.types.Object
+        Displayed as wire so the source mesh stays visible.
+    """
+    J = skeleton.joints
+    E = skeleton.bones
+    me = bpy.data.meshes.new(name)
+    me.vertices.add(len(J))
+    me.vertices.foreach_set("co", np.ascontiguousarray(J[:, :3], dtype=np.float32).ravel())
+    me.edges.add(len(E))
+    me.edges.foreach_set("vertices", np.ascontiguousarray(E, dtype=np.int32).ravel())
+    me.update()
+    ob = bpy.data.objects.new(name, me)
+    collection.objects.link(ob)
+    ob.matrix_world = matrix_world
+    mod = ob.modifiers.new(SKIN_MODIFIER, 'SKIN')     # creates me.skin_vertices[0]
+    mod.use_smooth_shade = True
+    mod.branch_smoothing = 0.0
+    _set_skin(me, J[:, 3], roots)
+    smooth = ob.modifiers.new(SMOOTH_MODIFIER, 'SUBSURF')   # the usual partner of Skin: rounds its hull
+    smooth.levels = 1
+    smooth.render_levels = 2
+    ob.display_type = 'WIRE'
+    ob.show_in_front = False
+    ob.hide_render = not in_render
+    return ob
+
+
+def update_silhouette(ob, skeleton, *, roots=None) -> None:
+    """Move the silhouette's vertices and radii to ``skeleton`` (same joints and bones)."""
+    me = ob.data
+    J = skeleton.joints
+    if len(me.vertices) != len(J) or len(me.edges) != len(skeleton.bones):
+        raise ValueError(f"silhouette {ob.name!r} has {len(me.vertices)} vertices and "
+                         f"{len(me.edges)} edges, the skeleton {len(J)} joints and "
+                         f"{len(skeleton.bones)} bones")
+    me.vertices.foreach_set("co", np.ascontiguousarray(J[:, :3], dtype=np.float32).ravel())
+    _set_skin(me, J[:, 3], roots)
+    me.update()
+
+
+def _set_skin(me, radius, roots) -> None:
+    sv = me.skin_vertices[0].data
+    sv.foreach_set("radius", np.repeat(np.asarray(radius, dtype=np.float32), 2))
+    if roots is not None:
+        mask = np.zeros(len(radius), dtype=bool)
+        mask[np.asarray(roots, dtype=np.int64)] = True
+        sv.foreach_set("use_root", mask)

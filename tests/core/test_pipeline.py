@@ -1,0 +1,123 @@
+"""The whole method end to end: topology, radii, mapping per input vertex, determinism, odd input."""
+
+import numpy as np
+import pytest
+
+from curveskel_addon.core import CurveSkelError, Skeleton, SkeletonParams, skeletonize
+from curveskel_addon.core.mesh_io import read_mesh
+from meshes import capsule, torus, two_capsules
+
+
+def graph_figures(sk: Skeleton):
+    """(components, independent cycles) of the skeleton graph."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    J = sk.n_joints
+    A = coo_matrix((np.ones(len(sk.bones)), tuple(sk.bones.T)), shape=(J, J))
+    c, _ = connected_components(A, directed=False)
+    return c, sk.n_bones - J + c
+
+
+@pytest.fixture(scope="module")
+def capsule_mesh():
+    return capsule(radius=1.0, length=6.0)
+
+
+@pytest.mark.parametrize("params", [SkeletonParams(), SkeletonParams.paper()], ids=["default", "paper"])
+def test_capsule_is_one_chain_along_the_axis_with_the_true_radius(capsule_mesh, params):
+    V, F = capsule_mesh
+    sk = skeletonize(V, F, params)
+    comps, cycles = graph_figures(sk)
+    assert comps == 1 and cycles == 0
+    deg = sk.degree()
+    assert deg.max() <= 2 and (deg == 1).sum() == 2            # a single chain
+    assert np.abs(sk.joints[:, :2]).max() < 0.1               # on the z axis
+    middle = np.abs(sk.joints[:, 2] - 3.0) < 2.0
+    assert middle.sum() >= 2
+    np.testing.assert_allclose(sk.joints[middle, 3], 1.0, rtol=0.05)
+
+
+@pytest.mark.parametrize("params", [SkeletonParams(), SkeletonParams.paper()], ids=["default", "paper"])
+def test_energy_never_increases(capsule_mesh, params):
+    V, F = capsule_mesh
+    sk = skeletonize(V, F, params)
+    e = np.array(sk.energy)
+    assert len(e) >= 2 and e[-1] < e[0]
+    assert np.all(np.diff(e) <= 1e-12 * e[0])
+    assert np.all(sk.joints[:, 3] >= 0)                       # negative radii flipped
+
+
+def test_torus_has_exactly_one_cycle():
+    sk = skeletonize(*torus(), SkeletonParams())
+    assert graph_figures(sk) == (1, 1)
+
+
+@pytest.mark.parametrize("name, genus", [("3holes.off", 3), ("fertility.off", 4), ("rocker-arm.obj", 1)])
+def test_shared_mesh_genus_equals_skeleton_cycles(shared_meshes, name, genus):
+    V, F = read_mesh(shared_meshes / name)
+    sk = skeletonize(V, F)
+    assert graph_figures(sk) == (1, genus)
+
+
+def test_two_components_give_two_trees():
+    V, F = two_capsules()
+    sk = skeletonize(V, F)
+    assert graph_figures(sk) == (2, 0)
+    assert sk.meta["components"] == 2
+    # each vertex is mapped to a bone of its own component's tree
+    left = V[:, 0] < 2.5
+    assert np.all(sk.sigma()[left, 0] < 2.5) and np.all(sk.sigma()[~left, 0] > 2.5)
+
+
+def test_mapping_has_one_entry_per_input_vertex_in_input_order_even_with_repairs(capsule_mesh):
+    V, F = capsule_mesh
+    # add an isolated vertex near the middle, a duplicate of vertex 0 used by no face, a degenerate face
+    V2 = np.vstack([V, [[0.0, 0.0, 3.0]], V[:1]])
+    F2 = np.vstack([F, [[0, 0, 1]]])
+    sk = skeletonize(V2, F2)
+    assert len(sk.bone) == len(V2) == len(sk.t)
+    assert sk.meta["input"]["isolated_vertices"] == 1
+    assert np.all((sk.t >= 0) & (sk.t <= 1))
+    # the isolated vertex takes the mapping of its nearest surface vertex
+    np.testing.assert_allclose(sk.sigma()[-1], sk.sigma()[0])
+
+
+def test_triangle_soup_gives_the_same_skeleton_as_the_indexed_mesh(capsule_mesh):
+    V, F = capsule_mesh
+    a = skeletonize(V, F)
+    soup_V = V[F.ravel()]
+    b = skeletonize(soup_V, np.arange(len(soup_V)).reshape(-1, 3))
+    assert b.n_joints == a.n_joints and b.n_bones == a.n_bones
+    assert len(b.bone) == len(soup_V)
+
+
+def test_open_and_non_manifold_meshes_work(capsule_mesh):
+    V, F = capsule_mesh
+    open_F = F[F.max(axis=1) < len(V) - 2]                   # remove the end cap fans: two holes
+    sk = skeletonize(V, open_F)
+    assert sk.n_bones >= 1 and graph_figures(sk)[0] == 1
+    fin = np.vstack([V, [[3.0, 3.0, 3.0]]])                  # a fin triangle on an existing edge
+    e = F[0]
+    nm_F = np.vstack([F, [[e[0], e[1], len(V)]]])
+    sk2 = skeletonize(fin, nm_F)
+    assert len(sk2.bone) == len(fin)
+
+
+def test_same_seed_same_skeleton_and_json_round_trip(capsule_mesh, tmp_path):
+    V, F = capsule_mesh
+    a, b = skeletonize(V, F, seed=3), skeletonize(V, F, seed=3)
+    np.testing.assert_array_equal(a.joints, b.joints)
+    a.save(tmp_path / "a.json")
+    c = Skeleton.load(tmp_path / "a.json")
+    np.testing.assert_array_equal(c.joints, a.joints)
+    np.testing.assert_array_equal(c.bone, a.bone)
+    assert c.energy == a.energy
+
+
+def test_bad_parameters_are_reported_clearly(capsule_mesh):
+    V, F = capsule_mesh
+    with pytest.raises(CurveSkelError, match="unknown solver"):
+        skeletonize(V, F, solver="newton")
+    with pytest.raises(CurveSkelError, match="spacing"):
+        skeletonize(V, F, spacing=0)

@@ -1,0 +1,126 @@
+"""skin_weights: sums, influences, the values at bone middles and joints, continuity (no bpy)."""
+
+import numpy as np
+import pytest
+
+import meshes
+from curveskel_addon.core import CurveSkelError, skeletonize
+from curveskel_addon.core.mapping import closest_on_bones
+from curveskel_addon.core.rig_layout import rig_layout
+from curveskel_addon.core.skin_weights import project_on_bones, skin_weights, smoothstep
+from test_rig_layout import ring_skeleton, star_skeleton
+
+
+def dense(index, weight, R):
+    """(n, R) weight matrix."""
+    W = np.zeros((len(index), R))
+    rows = np.repeat(np.arange(len(index)), index.shape[1])
+    ok = index.ravel() >= 0
+    np.add.at(W, (rows[ok], index.ravel()[ok]), weight.ravel()[ok])
+    return W
+
+
+def check_weights(index, weight, n):
+    assert index.shape == weight.shape == (n, 4)
+    assert np.allclose(weight.sum(axis=1), 1.0)
+    assert np.all(weight >= 0)
+    assert np.all((index >= 0) | (weight == 0))
+    assert np.all((weight > 0).sum(axis=1) <= 4)
+    assert np.all(np.diff(weight, axis=1) <= 1e-12)       # sorted, largest first
+
+
+def test_middle_and_joint_values():
+    J, B = star_skeleton(flip=True)
+    lay = rig_layout(J, B)
+    nb = len(B)
+    # middle of every bone: weight 1 on it
+    idx, w = skin_weights(lay, np.arange(nb), np.full(nb, 0.5))
+    check_weights(idx, w, nb)
+    assert np.allclose(w[:, 0], 1.0)
+    assert np.array_equal(idx[:, 0], lay.bone_rig)
+    # the chain joint between bones 0 and 1 of arm 0 (joint 1): 50/50 seen from either bone
+    j = 1
+    on = [b for b in range(nb) if j in B[b]][:2]
+    t = [1.0 if B[b][0] == j else 0.0 for b in on]
+    idx, w = skin_weights(lay, on, t)
+    check_weights(idx, w, 2)
+    assert np.allclose(w[:, :2], 0.5)
+    assert set(idx[0, :2]) == set(idx[1, :2]) == {lay.bone_rig[on[0]], lay.bone_rig[on[1]]}
+
+
+def test_junction_is_one_sided_and_siblings_share_nothing():
+    J, B = star_skeleton(flip=False)                       # bones (prev, cur): t = 1 at the centre side
+    lay = rig_layout(J, B)
+    first = [b for b in range(len(B)) if B[b][0] == 0]     # the four bones leaving the centre
+    idx, w = skin_weights(lay, first, np.ones(4))           # at the centre
+    assert np.all(idx[:, 0] == 0) and np.allclose(w[:, 0], 1.0)   # all on the root bone
+    idx, w = skin_weights(lay, first, np.full(4, 0.9))      # inside the blend zone
+    W = dense(idx, w, lay.n_bones)
+    for k, b in enumerate(first):
+        others = [lay.bone_rig[o] for o in first if o != b]
+        assert np.all(W[k, others] == 0)                    # no weight on sibling arms
+        assert 0 < W[k, lay.bone_rig[b]] < 1 and 0 < W[k, 0] < 1
+
+
+def test_continuity_along_a_chain():
+    J, B = star_skeleton(flip=True)
+    lay = rig_layout(J, B)
+    # walk arm 0 (joints 0-1-2-3) finely, through its two chain joints
+    arm = [0, 1, 2]
+    s = np.linspace(0, 3, 3001)
+    k = np.minimum(s.astype(int), 2)
+    u = s - k                                               # fraction from joint k to joint k+1
+    bone = np.array(arm)[k]
+    t = np.where(B[bone, 0] == k, 1 - u, u)                 # sigma = t x_i + (1 - t) x_j
+    idx, w = skin_weights(lay, bone, t, blend=0.25)
+    check_weights(idx, w, len(s))
+    W = dense(idx, w, lay.n_bones)
+    jump = np.abs(np.diff(W, axis=0)).max()
+    assert jump < 1.01 * 1.5 * 0.001 / 0.25               # smoothstep slope 1.5 per blend width
+    # a different blend changes the zone width, never the sums
+    for blend in (0.0, 0.1, 0.5):
+        idx, w = skin_weights(lay, bone, t, blend=blend)
+        check_weights(idx, w, len(s))
+    idx, w = skin_weights(lay, bone, t, blend=0.0)
+    assert np.allclose(w[:, 0], 1.0)
+
+
+def test_ring_meeting_point_is_continuous():
+    J, B = ring_skeleton(n=12)
+    lay = rig_layout(J, B)
+    # the far joint where the two halves meet: both bones give 50/50 there
+    meet = [r for r in range(1, lay.n_bones) if lay.tail_joint[r] == lay.tail_joint[lay.tail_partner[r]]]
+    bones = [lay.skeleton_bone[r] for r in meet]
+    j = lay.tail_joint[meet[0]]
+    t = [1.0 if B[b][0] == j else 0.0 for b in bones]
+    idx, w = skin_weights(lay, bones, t)
+    assert np.allclose(w[:, :2], 0.5)
+
+
+def test_rejects_bad_blend():
+    J, B = star_skeleton()
+    lay = rig_layout(J, B)
+    with pytest.raises(CurveSkelError):
+        skin_weights(lay, [0], [0.5], blend=0.7)
+    assert np.allclose(smoothstep(np.array([-1, 0, 0.5, 1, 2])), [0, 0, 0.5, 1, 1])
+
+
+def test_project_on_bones_matches_all_bones():
+    rng = np.random.default_rng(0)
+    J, B = star_skeleton(per_arm=6)
+    P = rng.normal(size=(5000, 3)) * 2
+    b1, t1, d1 = project_on_bones(P, J, B)
+    b2, t2, d2 = closest_on_bones(P, J, B)
+    assert np.allclose(d1, d2)
+    ok = b1 == b2
+    assert ok.mean() > 0.99 and np.allclose(t1[ok], t2[ok])
+
+
+@pytest.mark.parametrize("name", ["star", "bent_capsule", "torus"])
+def test_real_mesh_weights(name):
+    V, F = getattr(meshes, name)()
+    sk = skeletonize(V, F)
+    lay = rig_layout(sk.joints, sk.bones)
+    idx, w = skin_weights(lay, sk.bone, sk.t)
+    check_weights(idx, w, len(V))
+    assert np.all(idx[:, 0] >= 0)                          # every vertex has a weight
