@@ -4,7 +4,8 @@ The armature carries what is needed to bind a mesh to it later without the Skele
 
 ``curveskel_joints``      flat (J*4) x, y, z, r of the skeleton joints (the source mesh's local space)
 ``curveskel_bones``       flat (B*2) joint pairs
-``curveskel_bone_names``  Blender bone of each skeleton bone
+``curveskel_bone_names``  Blender bone of each skeleton bone (a zero-length skeleton bone, merged
+                          into a joint, names the bone that carries its vertices)
 ``curveskel_roots``       root joint of each part
 ``curveskel_up``          direction of the root bones, in the armature's space
 ``curveskel_source``      name of the source mesh
@@ -96,12 +97,10 @@ def build_armature(context, skeleton, name: str, collection, matrix_world, *, ro
     prev_active = vl.objects.active
     if prev_active is not None and prev_active.mode != 'OBJECT':
         bpy.ops.object.mode_set(mode='OBJECT')
-    hidden = ob.hide_get(view_layer=vl) if ob.name in vl.objects else True
     if ob.name not in vl.objects:
         bpy.data.objects.remove(ob)
         bpy.data.armatures.remove(arm)
         raise CurveSkelError(f"collection '{collection.name}' is not in the view layer: cannot edit bones")
-    ob.hide_set(False)
     vl.objects.active = ob
     try:
         bpy.ops.object.mode_set(mode='EDIT')
@@ -129,7 +128,6 @@ def build_armature(context, skeleton, name: str, collection, matrix_world, *, ro
         bpy.data.armatures.remove(arm)
         raise
     bpy.ops.object.mode_set(mode='OBJECT')
-    ob.hide_set(hidden)
     if prev_active is not None and prev_active.name in vl.objects:
         vl.objects.active = prev_active
     if len(arm.bones) != lay.n_bones:

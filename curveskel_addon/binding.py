@@ -4,9 +4,11 @@ Binding is the one change curveskel makes to the user's mesh. What it adds is tr
 object (``curveskel_groups``: the vertex groups it made, ``curveskel_modifier``: its modifier), so
 a re-bind replaces exactly those and leaves the user's other groups and modifiers alone.
 
-Weights come from ``core.skin_weights`` (method "MAPPING") and are written through a bmesh
-deform layer (no per-vertex operator call), or from Blender's heat weights ("HEAT",
-``parent_set(type='ARMATURE_AUTO')``) for comparison.
+Weights come from ``core.skin_weights`` (method "MAPPING": the skeleton mapping blended at
+joints, then diffused a short distance over the surface to close seams) and are written through a
+bmesh deform layer (no per-vertex operator call), or from Blender's heat weights ("HEAT",
+``parent_set(type='ARMATURE_AUTO')``, slow on large meshes) for comparison. The mesh is never
+re-parented: the Armature modifier alone binds it.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import numpy as np
 
 from .armature import is_curveskel_armature, layout_of
 from .core.errors import CurveSkelError
-from .core.skin_weights import project_on_bones, skin_weights
+from .core.skin_weights import project_on_bones, skin_weights, smooth_weights, smoothing_iterations
 
 __all__ = ["bind_mesh", "unbind_mesh", "write_weights", "METHODS", "GROUPS_KEY", "MODIFIER_KEY",
            "MODIFIER_NAME", "HEAT_SLOW_VERTICES"]
@@ -78,38 +80,34 @@ def write_weights(mesh_obj, group_names, index, weight) -> None:
         vg = mesh_obj.vertex_groups.new(name=g)
         if vg.name != g:
             raise CurveSkelError(f"vertex group name '{g}' is taken")
-    k = int((index >= 0).sum(axis=1).max()) if len(index) else 0
+    n = len(index)
+    k = int((index >= 0).sum(axis=1).max()) if n else 0
     gidx = np.where(index[:, :k] >= 0, index[:, :k] + base, -1)
     bm = bmesh.new()
     try:
         bm.from_mesh(me)
         dl = bm.verts.layers.deform.verify()
-        if k == 1 or k == 2:
-            # one or two influences (the skin_weights case): a flat loop, no inner zip
-            g0, w0 = gidx[:, 0].tolist(), weight[:, 0].tolist()
-            if k == 1:
-                for v, a, wa in zip(bm.verts, g0, w0):
-                    v[dl][a] = wa
-            else:
-                g1, w1 = gidx[:, 1].tolist(), weight[:, 1].tolist()
-                for v, a, wa, b, wb in zip(bm.verts, g0, w0, g1, w1):
-                    d = v[dl]
-                    d[a] = wa
-                    if b >= 0:
-                        d[b] = wb
-        elif k > 2:
-            for v, gi, wi in zip(bm.verts, gidx.tolist(), weight[:, :k].tolist()):
-                d = v[dl]
-                for g, w in zip(gi, wi):
-                    if g >= 0:
-                        d[g] = w
+        deform = [v[dl] for v in bm.verts]
+        # column by column: one flat loop per influence rank (3x faster than a nested loop)
+        for c in range(k):
+            rows = np.flatnonzero(gidx[:, c] >= 0)
+            targets = deform if len(rows) == n else [deform[r] for r in rows.tolist()]
+            for d, g, w in zip(targets, gidx[rows, c].tolist(), weight[rows, c].tolist()):
+                d[g] = w
         bm.to_mesh(me)
     finally:
         bm.free()
     me.update()
 
 
-def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, method: str = "MAPPING") -> dict:
+def _edges(me) -> np.ndarray:
+    e = np.empty(len(me.edges) * 2, dtype=np.int32)
+    me.edges.foreach_get("vertices", e)
+    return e.reshape(-1, 2).astype(np.int64)
+
+
+def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, smooth: float = 0.5,
+              method: str = "MAPPING") -> dict:
     """Skin ``mesh_obj`` to the curveskel armature ``arm_obj``.
 
     Parameters
@@ -123,6 +121,10 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, method: 
         vertex. Otherwise (or when None) every vertex is mapped to the closest point on the bones.
     blend : float in [0, 0.5]
         Blend width at joints, as a fraction of bone length (MAPPING only).
+    smooth : float >= 0
+        Radius over which weights are then diffused along the surface, as a fraction of the
+        skeleton's median joint radius (closes seams where the mapping jumps between branches;
+        at most 30 steps). 0 keeps the weights exactly as the mapping gives them (MAPPING only).
     method : {"MAPPING", "HEAT"}
         Skeleton-mapping weights (default), or Blender's heat weights (slow on large meshes).
 
@@ -147,6 +149,8 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, method: 
         raise CurveSkelError("bind: the object to bind must be a mesh")
     if not is_curveskel_armature(arm_obj):
         raise CurveSkelError(f"bind: '{getattr(arm_obj, 'name', arm_obj)}' is not a curveskel armature")
+    if not smooth >= 0:
+        raise CurveSkelError(f"bind: smooth must be >= 0, got {smooth}")
     if mesh_obj.mode != 'OBJECT':
         raise CurveSkelError(f"bind: '{mesh_obj.name}' must be in object mode")
     me = mesh_obj.data
@@ -186,6 +190,20 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, method: 
                 warnings.append("the skeleton's mapping does not match the mesh's vertices: "
                                 "mapped each vertex to its closest bone instead")
         index, weight = skin_weights(lay, bone, t, blend=blend)
+        fig["smooth_iterations"] = 0
+        if smooth > 0:
+            E = _edges(me)
+            Pm = _vertices(me)
+            h = float(np.mean(np.linalg.norm(Pm[E[:, 0]] - Pm[E[:, 1]], axis=1))) if len(E) else 0.0
+            scale = float(np.cbrt(abs(np.linalg.det(np.array(arm_obj.matrix_world.inverted()
+                                                             @ mesh_obj.matrix_world)[:3, :3]))))
+            radius = smooth * float(np.median(joints[:, 3])) / max(scale, 1e-300)
+            k = smoothing_iterations(radius, h)
+            ts = time.perf_counter()
+            if k:
+                index, weight = smooth_weights(index, weight, E, iterations=k)
+            fig["smooth_iterations"] = k
+            fig["smooth_seconds"] = time.perf_counter() - ts
         groups = [lay.names[r] for r in range(lay.n_bones)]
         # only groups that receive weight, in armature order
         used = np.zeros(lay.n_bones, bool)
@@ -201,6 +219,7 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, method: 
         fig["max_influences"] = int((index >= 0).sum(axis=1).max()) if n else 0
         fig["unweighted"] = int(np.sum(weight.sum(axis=1) <= 0))
         fig["blend"] = float(blend)
+        fig["smooth"] = float(smooth)
         mod = mesh_obj.modifiers.new(MODIFIER_NAME, 'ARMATURE')
     else:
         groups, mod = _heat_weights(mesh_obj, arm_obj, deform, warnings)
@@ -210,6 +229,9 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, method: 
             warnings.append(f"heat weights are slow on large meshes ({n} vertices); "
                             "the skeleton-mapping method is much faster")
         fig["max_influences"], fig["unweighted"] = _influence_counts(mesh_obj, set(groups))
+        if fig["unweighted"]:
+            warnings.append("Blender's heat weighting found no solution for some bones (common on "
+                            "very small, thin or self-intersecting meshes): use the skeleton-mapping method")
 
     mod.object = arm_obj
     mod.use_vertex_groups = True
@@ -297,7 +319,8 @@ def benchmark_bind(vertices: int = 100_000, *, bones: int = 20, method: str = "M
                   np.broadcast_to(z[:, None], (rings, around))], -1).reshape(-1, 3)
     r = np.arange(rings - 1)[:, None] * around
     k = np.arange(around)[None, :]
-    q = np.stack([r + k, r + (k + 1) % around, r + around + (k + 1) % around, r + around + k], -1).reshape(-1, 4)
+    k1 = (k + 1) % around
+    q = np.stack([r + k, r + k1, r + around + k1, r + around + k], -1).reshape(-1, 4)
     t0 = time.perf_counter()
     me = bpy.data.meshes.new("curveskel_bench")
     me.vertices.add(len(V))

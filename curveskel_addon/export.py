@@ -50,6 +50,18 @@ def export_rig(context, mesh_obj, arm_obj, filepath, *, fmt: str | None = None) 
     if prev_active is not None and prev_active.mode != 'OBJECT':
         bpy.ops.object.mode_set(mode='OBJECT')
     t0 = time.perf_counter()
+    # The exporters expect a skinned mesh to be a child of its armature (curveskel binds through
+    # the modifier only): parent it for the export, keeping its world placement, then restore.
+    saved = None
+    if mesh_obj.parent != arm_obj:
+        saved = (mesh_obj.parent, mesh_obj.parent_type, mesh_obj.parent_bone,
+                 mesh_obj.matrix_parent_inverse.copy(), mesh_obj.matrix_basis.copy())
+        mw = mesh_obj.matrix_world.copy()
+        mesh_obj.parent = arm_obj
+        mesh_obj.parent_type = 'OBJECT'
+        mesh_obj.matrix_parent_inverse = arm_obj.matrix_world.inverted()
+        mesh_obj.matrix_basis = mw
+        context.view_layer.update()
     try:
         for o in prev_sel:
             o.select_set(False)
@@ -67,6 +79,10 @@ def export_rig(context, mesh_obj, arm_obj, filepath, *, fmt: str | None = None) 
     except RuntimeError as exc:
         raise CurveSkelError(f"{fmt} export to '{path}' failed: {exc}") from exc
     finally:
+        if saved is not None:
+            (mesh_obj.parent, mesh_obj.parent_type, mesh_obj.parent_bone,
+             mesh_obj.matrix_parent_inverse, mesh_obj.matrix_basis) = saved
+            context.view_layer.update()
         for o in vl.objects:
             o.select_set(o in prev_sel)
         vl.objects.active = prev_active

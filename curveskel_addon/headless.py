@@ -15,7 +15,7 @@ from . import results
 from .core import CurveSkelError
 
 __all__ = ["reset_scene", "ensure_registered", "mesh_object_from_arrays", "import_mesh",
-           "generate", "save_blend", "render_preview"]
+           "generate", "save_blend", "render_preview", "cli_outputs"]
 
 PREVIEW_COLLECTION = "CurveSkel Preview"
 
@@ -277,3 +277,24 @@ def _setup_render(scene, path, resolution, samples) -> None:
     scene.view_settings.view_transform = 'Standard'
     scene.render.image_settings.file_format = 'PNG'
     scene.render.filepath = str(path)
+
+
+def cli_outputs(mesh_path, params: dict, *, blend=None, render=None, bind: bool = False) -> dict:
+    """What ``skeletonize.py --blend/--render`` does: a fresh scene, the mesh through Blender's
+    importer, the ``curveskel.generate`` operator with ``params`` (SkeletonParams fields), then
+    the .blend and/or the preview picture. Returns the objects and timings."""
+    import time
+
+    reset_scene()
+    ensure_registered()
+    ob = import_mesh(mesh_path)
+    t0 = time.perf_counter()
+    found = generate(ob, **params, bind=bind)
+    out = {"object": ob, **found, "operator_seconds": time.perf_counter() - t0}
+    if blend is not None:
+        out["blend"] = save_blend(blend)
+    if render is not None:
+        t0 = time.perf_counter()
+        out["render"] = render_preview(render, ob)
+        out["render_seconds"] = time.perf_counter() - t0
+    return out

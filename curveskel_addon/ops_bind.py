@@ -76,13 +76,20 @@ class CURVESKEL_OT_bind(bpy.types.Operator):
             return False
         return True
 
+    smooth: FloatProperty(
+        name="Surface Smoothing", default=0.5, min=0.0, soft_max=2.0,
+        description="Diffuse the weights along the surface over this fraction of the typical "
+        "limb radius, closing seams where neighbouring surface parts follow different branches "
+        "(0: weights exactly from the skeleton mapping)")
+
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
         layout.prop(self, "method")
-        row = layout.row()
-        row.active = self.method == "MAPPING"
-        row.prop(self, "blend")
+        col = layout.column()
+        col.active = self.method == "MAPPING"
+        col.prop(self, "blend")
+        col.prop(self, "smooth")
 
     def execute(self, context):
         mesh, arm, problem = bind_targets(context, self.armature)
@@ -92,7 +99,7 @@ class CURVESKEL_OT_bind(bpy.types.Operator):
         if mesh.mode != 'OBJECT':
             bpy.ops.object.mode_set(mode='OBJECT')
         try:
-            fig = bind_mesh(mesh, arm, None, blend=self.blend, method=self.method)
+            fig = bind_mesh(mesh, arm, None, blend=self.blend, smooth=self.smooth, method=self.method)
         except CurveSkelError as exc:
             self.report({'ERROR'}, f"CurveSkel bind '{mesh.name}': {exc}")
             return {'CANCELLED'}

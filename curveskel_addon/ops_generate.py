@@ -6,6 +6,7 @@ Thin on purpose: read properties and the evaluated mesh, call the core, build ob
 from __future__ import annotations
 
 import time
+import traceback
 
 import bpy
 
@@ -15,7 +16,8 @@ from .binding import bind_mesh
 from .core import CurveSkelError, SkeletonRun
 from .mesh_read import evaluated_triangles
 from .preferences import get_preferences
-from .properties import OPTION_NAMES, PARAM_NAMES, GenerateSettings, settings_dict, skeleton_params
+from .properties import (ADVANCED_NAMES, OPTION_NAMES, PARAM_NAMES, GenerateSettings, settings_dict,
+                         skeleton_params)
 from .silhouette import build_silhouette, update_silhouette
 
 __all__ = ["CURVESKEL_OT_generate", "input_problem", "build_result", "CLASSES"]
@@ -83,7 +85,7 @@ def build_result(context, src, skeleton, options: dict, *, live_silhouette=None,
                                    in_render=options["silhouette_in_render"])
             made.append(sil)
             results.tag(sil, src.name, "silhouette")
-        params = {k: options[k] for k in PARAM_NAMES}
+        params = {k: options[k] for k in PARAM_NAMES + ADVANCED_NAMES if k in options}
         for ob in (arm, sil):
             if ob is not None:
                 results.store_figures(ob, skeleton, params=params, stopped=stopped)
@@ -134,6 +136,9 @@ class CURVESKEL_OT_generate(GenerateSettings, bpy.types.Operator):
         col = layout.column()
         for name in PARAM_NAMES:
             col.prop(self, name)
+        col = layout.column(heading="Advanced")
+        for name in ADVANCED_NAMES:
+            col.prop(self, name)
         col = layout.column(heading="Create")
         col.prop(self, "make_armature")
         col.prop(self, "make_silhouette")
@@ -147,16 +152,13 @@ class CURVESKEL_OT_generate(GenerateSettings, bpy.types.Operator):
 
     # -- entry points ---------------------------------------------------------------------------
     def invoke(self, context, event):
-        prefs = get_preferences(context)
-        if prefs is not None:
-            for name in PARAM_NAMES + OPTION_NAMES:
-                if not self.properties.is_property_set(name):
-                    setattr(self, name, getattr(prefs, name))
+        self._defaults_from_preferences(context)
         if self.interactive and not bpy.app.background and context.window is not None:
             return self._modal_start(context)
         return self.execute(context)
 
     def execute(self, context):
+        self._defaults_from_preferences(context)
         src = self._checked_source(context)
         if src is None:
             return {'CANCELLED'}
@@ -168,6 +170,10 @@ class CURVESKEL_OT_generate(GenerateSettings, bpy.types.Operator):
             skeleton = SkeletonRun(V, F, skeleton_params(self), _progress(wm)).result()
         except CurveSkelError as exc:
             self.report({'ERROR'}, f"CurveSkel '{src.name}': {exc}")
+            return {'CANCELLED'}
+        except Exception as exc:      # a bug, not bad input: say so, keep the traceback in the console
+            traceback.print_exc()
+            self.report({'ERROR'}, f"CurveSkel '{src.name}': internal error ({type(exc).__name__}: {exc})")
             return {'CANCELLED'}
         finally:
             wm.progress_end()
@@ -248,6 +254,16 @@ class CURVESKEL_OT_generate(GenerateSettings, bpy.types.Operator):
             context.area.header_text_set(None if text is None else f"CurveSkel: {text}")
 
     # -- shared ---------------------------------------------------------------------------------
+    def _defaults_from_preferences(self, context) -> None:
+        """Properties the caller did not set take the add-on preferences' values (once: after
+        that they count as set, so Adjust Last Operation keeps what the user sees)."""
+        prefs = get_preferences(context)
+        if prefs is None:
+            return
+        for name in PARAM_NAMES + ADVANCED_NAMES + OPTION_NAMES:
+            if not self.properties.is_property_set(name):
+                setattr(self, name, getattr(prefs, name))
+
     def _checked_source(self, context):
         problem = input_problem(context)
         if problem is None and not (self.make_armature or self.make_silhouette):

@@ -10,9 +10,9 @@ import bpy
 
 from . import results
 from .preferences import get_preferences
-from .properties import OPTION_NAMES, PARAM_NAMES, settings_dict
+from .properties import ADVANCED_NAMES, OPTION_NAMES, PARAM_NAMES, settings_dict
 
-__all__ = ["CURVESKEL_PT_main", "CURVESKEL_PT_result", "CLASSES"]
+__all__ = ["CURVESKEL_PT_main", "CURVESKEL_PT_advanced", "CURVESKEL_PT_result", "CLASSES"]
 
 
 def _active_result(context) -> tuple[str | None, dict]:
@@ -83,7 +83,7 @@ class CURVESKEL_OT_reset_settings(bpy.types.Operator):
     def execute(self, context):
         prefs = get_preferences(context)
         settings = context.scene.curveskel
-        for name in PARAM_NAMES + OPTION_NAMES:
+        for name in PARAM_NAMES + ADVANCED_NAMES + OPTION_NAMES:
             if prefs is not None:
                 setattr(settings, name, getattr(prefs, name))
             else:
@@ -121,6 +121,23 @@ class CURVESKEL_PT_main(bpy.types.Panel):
         for name, value in settings_dict(settings).items():
             setattr(op, name, value)
         layout.operator("curveskel.reset_settings", icon='LOOP_BACK')
+
+
+class CURVESKEL_PT_advanced(bpy.types.Panel):
+    bl_space_type = 'VIEW_3D'
+    bl_region_type = 'UI'
+    bl_category = "CurveSkel"
+    bl_label = "Advanced"
+    bl_parent_id = "CURVESKEL_PT_main"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        col = layout.column()
+        for name in ADVANCED_NAMES:
+            col.prop(context.scene.curveskel, name)
 
 
 class CURVESKEL_PT_result(bpy.types.Panel):
@@ -163,4 +180,4 @@ def _menu_entry(self, context):
 
 MENU_ENTRIES = ((bpy.types.VIEW3D_MT_object, _menu_entry),)
 CLASSES = (CURVESKEL_OT_select_armature, CURVESKEL_OT_toggle_silhouette,
-           CURVESKEL_OT_reset_settings, CURVESKEL_PT_main, CURVESKEL_PT_result)
+           CURVESKEL_OT_reset_settings, CURVESKEL_PT_main, CURVESKEL_PT_advanced, CURVESKEL_PT_result)

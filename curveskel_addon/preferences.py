@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import bpy
 
-from .properties import GenerateSettings, PARAM_NAMES, OPTION_NAMES
+from .properties import ADVANCED_NAMES, OPTION_NAMES, PARAM_NAMES, GenerateSettings
 
 __all__ = ["CURVESKEL_AddonPreferences", "get_preferences", "CLASSES"]
 
@@ -21,7 +21,7 @@ class CURVESKEL_AddonPreferences(GenerateSettings, bpy.types.AddonPreferences):
         layout = self.layout
         layout.use_property_split = True
         col = layout.column(heading="Defaults")
-        for name in PARAM_NAMES:
+        for name in PARAM_NAMES + ADVANCED_NAMES:
             col.prop(self, name)
         col = layout.column(heading="Create")
         for name in OPTION_NAMES:

@@ -13,7 +13,8 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 
 from .core.params import SOLVERS, SkeletonParams
 
-__all__ = ["GenerateSettings", "CurveSkelSceneSettings", "PARAM_NAMES", "OPTION_NAMES",
+__all__ = ["GenerateSettings", "CurveSkelSceneSettings", "PARAM_NAMES", "ADVANCED_NAMES",
+           "OPTION_NAMES",
            "settings_dict", "skeleton_params", "CLASSES"]
 
 _D = SkeletonParams()
@@ -46,6 +47,21 @@ class GenerateSettings:
                              default=_D.tolerance, min=1e-9, max=1.0, precision=6, step=0.01)
     seed: IntProperty(name="Seed", description="Seed of the pole search (results are reproducible)",
                       default=_D.seed, min=0)
+    # Advanced method parameters (the rest of SkeletonParams: the command line's flags).
+    area_weighted: BoolProperty(name="Area Weights", description="Weight each vertex by its area "
+                                "(a surface integral instead of the paper's vertex sum)",
+                                default=_D.area_weighted)
+    refit_mapping: BoolProperty(name="Re-fit Mapping", description="Re-fit each vertex's skeleton "
+                                "point between solver steps", default=_D.refit_mapping)
+    prune: FloatProperty(name="Prune", description="Remove leaf branches that explain less than "
+                         "this share of the energy (0 keeps all)", default=_D.prune, min=0.0,
+                         soft_max=1.0, precision=3, step=1)
+    simplify: FloatProperty(name="Simplify", description="Merge chain joints when the energy rises "
+                            "by less than this fraction (0 is off)", default=_D.simplify, min=0.0,
+                            soft_max=1.0, precision=3, step=1)
+    candidates: IntProperty(name="Candidates", description="First approximations tried (poles and "
+                            "spacings); the one of lowest energy is kept", default=_D.candidates,
+                            min=1, soft_max=8)
     make_armature: BoolProperty(name="Armature", description="Create an armature from the skeleton",
                                 default=True)
     make_silhouette: BoolProperty(name="Silhouette", description="Create an edge mesh with a Skin "
@@ -62,8 +78,9 @@ class GenerateSettings:
                               "updates in interactive mode", default=2, min=1, soft_max=50)
 
 
-#: Properties that are parameters of the core (SkeletonParams fields).
+#: Properties that are parameters of the core: every SkeletonParams field, main ones first.
 PARAM_NAMES = ("spacing", "solver", "max_iterations", "tolerance", "seed")
+ADVANCED_NAMES = ("area_weighted", "refit_mapping", "prune", "simplify", "candidates")
 #: Properties of the Blender side of a run.
 OPTION_NAMES = ("make_armature", "make_silhouette", "silhouette_in_render", "bind", "interactive",
                 "update_every")
@@ -79,12 +96,13 @@ def _decimal(value):
 
 def settings_dict(src) -> dict:
     """Every GenerateSettings value of an operator, scene settings or preferences, by name."""
-    return {name: _decimal(getattr(src, name)) for name in PARAM_NAMES + OPTION_NAMES}
+    return {name: _decimal(getattr(src, name)) for name in PARAM_NAMES + ADVANCED_NAMES + OPTION_NAMES}
 
 
 def skeleton_params(src) -> SkeletonParams:
     """The core parameters named by GenerateSettings properties; other fields keep their defaults."""
-    return SkeletonParams.from_dict({name: _decimal(getattr(src, name)) for name in PARAM_NAMES})
+    return SkeletonParams.from_dict({name: _decimal(getattr(src, name))
+                                     for name in PARAM_NAMES + ADVANCED_NAMES})
 
 
 class CurveSkelSceneSettings(GenerateSettings, bpy.types.PropertyGroup):
@@ -92,3 +110,7 @@ class CurveSkelSceneSettings(GenerateSettings, bpy.types.PropertyGroup):
 
 
 CLASSES = (CurveSkelSceneSettings,)
+
+
+# Every SkeletonParams field is a property: the UI can run whatever the command line can.
+assert set(PARAM_NAMES + ADVANCED_NAMES) == set(SkeletonParams().to_dict()), "GenerateSettings out of date"

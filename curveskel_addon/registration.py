@@ -16,7 +16,6 @@ CLASSES = (
     *preferences.CLASSES,
     *ops_generate.CLASSES,
     *ops_bind.CLASSES,
-    *ops_bind.CLASSES,
     *panel.CLASSES,
 )
 

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Skeletonize mesh files from the command line.
 
-    python scripts/skeletonize.py MESH [--json OUT.json] [method options]
+    python scripts/skeletonize.py MESH [--json OUT.json] [--blend OUT.blend] [--render OUT.png]
+                                       [method options]
 
 Reads .obj .ply .stl .off, runs the curveskel core and prints vertices, components, joints,
 bones, E0 -> E, iterations and the time of every stage. Errors are reported in one line
@@ -55,6 +56,19 @@ def build_parser() -> argparse.ArgumentParser:
                     help="compute the quality measures (energy, reconstruction distance, inside "
                          "fraction, topology) and store them in the JSON meta")
     ap.add_argument("--debug", action="store_true", help="show a traceback on errors")
+    r = ap.add_argument_group("rigging (needs Blender as a Python module, bpy)")
+    r.add_argument("--bind", action="store_true",
+                   help="build the armature in Blender and skin the mesh to it (skeleton-mapping weights)")
+    r.add_argument("--glb", type=Path, metavar="OUT.glb",
+                   help="export the rigged mesh + armature with Blender's glTF exporter (implies --bind)")
+    r.add_argument("--fbx", type=Path, metavar="OUT.fbx",
+                   help="export the rigged mesh + armature with Blender's FBX exporter (implies --bind)")
+    b = ap.add_argument_group("Blender scene (needs Blender as a Python module, bpy)")
+    b.add_argument("--blend", type=Path, metavar="OUT.blend",
+                   help="import the mesh with Blender's importer, run the add-on's operator and save "
+                        "the scene (mesh, armature, silhouette)")
+    b.add_argument("--render", type=Path, metavar="OUT.png",
+                   help="render a Cycles CPU preview of the mesh with its silhouette and skeleton")
     g = ap.add_argument_group("method parameters")
     defaults = SkeletonParams()
     for f in fields(SkeletonParams):
@@ -127,7 +141,55 @@ def run(args) -> int:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         sk.save(args.json)
         print(f"wrote       {args.json}")
+    if args.bind or args.glb or args.fbx:
+        rig_outputs(args, V, sk)
+    if args.blend or args.render:
+        blender_outputs(args, params)
     return 0
+
+
+def blender_outputs(args, params) -> None:
+    """--blend/--render: the same operator the Blender UI runs (curveskel_addon.headless)."""
+    from curveskel_addon import headless
+
+    out = headless.cli_outputs(args.mesh, params.to_dict(), blend=args.blend, render=args.render,
+                               bind=args.bind)
+    arm = out["armature"]
+    print(f"blender     {arm.name}: {arm['curveskel_n_joints']} joints, {arm['curveskel_n_bones']} bones, "
+          f"operator {out['operator_seconds']:.2f} s", flush=True)
+    if "blend" in out:
+        print(f"wrote       {out['blend']}")
+    if "render" in out:
+        print(f"wrote       {out['render']} (render {out['render_seconds']:.1f} s)")
+
+
+def rig_outputs(args, V, sk) -> None:
+    """--bind/--glb/--fbx: import the mesh into Blender, armature + binding from ``sk``, export."""
+    import numpy as np
+
+    import bpy
+    from curveskel_addon import headless
+    from curveskel_addon.export import export_rig
+    from curveskel_addon.ops_generate import build_result
+
+    headless.reset_scene()
+    ob = headless.import_mesh(args.mesh)
+    co = np.empty(len(ob.data.vertices) * 3)
+    ob.data.vertices.foreach_get("co", co)
+    if len(co) != 3 * len(V) or np.abs(co.reshape(-1, 3) - V).max() > 1e-5 * max(float(np.ptp(V)), 1e-12):
+        # Blender's importer changed the vertices: bind by closest point on the bones instead.
+        from curveskel_addon.core import Skeleton
+
+        sk = Skeleton(sk.joints, sk.bones, [], [], energy=sk.energy, timings=sk.timings, meta=sk.meta)
+    options = {**sk.meta.get("params", {}), "make_armature": True, "make_silhouette": False,
+               "silhouette_in_render": False, "bind": True}
+    found = build_result(bpy.context, ob, sk, options)
+    arm = found["armature"]
+    print(f"rig         {len(arm.data.bones)} bones, {len(ob.vertex_groups)} vertex groups", flush=True)
+    for path in (args.glb, args.fbx):
+        if path is not None:
+            out = export_rig(bpy.context, ob, arm, path)
+            print(f"wrote       {out['path']} ({out['format']}, {out['seconds']:.2f} s)")
 
 
 def main(argv=None) -> int:

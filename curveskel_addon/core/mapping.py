@@ -123,20 +123,31 @@ def closest_on_bones(points, joints, bones, candidates=None):
 
 
 def _all_bones(P, X, bones):
+    """Every bone a candidate: pick the bone with dot products (BLAS), then exact t and dist2.
+
+    For point p and bone (xi, xj) with a = xj, d = xi - xj: num = p.d - a.d, t = num / d.d and
+    |p - sigma|^2 = |p - a|^2 - t (2 num - t d.d), all from the (k, B) products P A^T and P D^T.
+    Coordinates are taken relative to the points' centre so the expansion loses no precision
+    that matters for *choosing* a bone; t and dist2 of the chosen bone are then computed
+    exactly, as for candidate lists.
+    """
     n, nb = len(P), len(bones)
+    o = 0.5 * (P.min(axis=0) + P.max(axis=0))
+    A = X[bones[:, 1]] - o
+    D = X[bones[:, 0]] - X[bones[:, 1]]
+    DD = np.einsum("ij,ij->i", D, D)
+    AD = np.einsum("ij,ij->i", A, D)
+    AA = np.einsum("ij,ij->i", A, A)
+    inv = np.divide(1.0, DD, out=np.zeros_like(DD), where=DD > 0)
+    M = np.concatenate([A, D]).T                      # (3, 2B)
     bone = np.zeros(n, np.int64)
-    t = np.zeros(n)
-    d2 = np.full(n, np.inf)
-    xi, xj = X[bones[:, 0]], X[bones[:, 1]]
     step = max(1, _CHUNK // nb)
     for s in range(0, n, step):
-        p = P[s:s + step]
-        k = len(p)
-        tt, dd = _pair_closest(np.repeat(p, nb, axis=0), np.tile(xi, (k, 1)), np.tile(xj, (k, 1)))
-        dd = dd.reshape(k, nb)
-        best = np.argmin(dd, axis=1)
-        r = np.arange(k)
-        bone[s:s + k] = best
-        t[s:s + k] = tt.reshape(k, nb)[r, best]
-        d2[s:s + k] = dd[r, best]
+        p = P[s:s + step] - o
+        S = p @ M
+        num = S[:, nb:] - AD
+        t = np.clip(num * inv, 0.0, 1.0)
+        d2 = np.einsum("ij,ij->i", p, p)[:, None] - 2.0 * S[:, :nb] + AA - t * (2.0 * num - t * DD)
+        bone[s:s + len(p)] = np.argmin(d2, axis=1)
+    t, d2 = _pair_closest(P, X[bones[bone, 0]], X[bones[bone, 1]])
     return bone, t, d2

@@ -86,6 +86,36 @@ def _as_index_array(P) -> np.ndarray:
     raise CurveSkelError(f"face indices must be integers, got dtype {P.dtype}")
 
 
+def _merge_identical(V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unique rows of V and, per row, the index of its unique row (first occurrence order kept).
+
+    A lexsort over the three columns: np.unique(axis=0) gives the same answer but compares
+    structured rows and is about 10x slower on a million vertices.
+    """
+    order = np.lexsort((V[:, 2], V[:, 1], V[:, 0]))
+    Vs = V[order]
+    starts = np.ones(len(V), bool)
+    starts[1:] = np.any(Vs[1:] != Vs[:-1], axis=1)
+    group = np.cumsum(starts) - 1                       # group id in sorted order
+    # Number groups by their first input index so the working mesh keeps the input's order.
+    first_min = np.minimum.reduceat(order, np.flatnonzero(starts))
+    by_first = np.argsort(first_min, kind="stable")
+    rank = np.empty(len(first_min), np.int64)
+    rank[by_first] = np.arange(len(first_min))
+    inverse = np.empty(len(V), np.int64)
+    inverse[order] = rank[group]
+    return V[first_min[by_first]], inverse
+
+
+def _any_positive_area(V: np.ndarray, F: np.ndarray, chunk: int = 4096) -> bool:
+    """True if some triangle has non-zero area; usually decided by the first chunk."""
+    for k in range(0, len(F), max(chunk, len(F) // 8)):
+        T = V[F[k:k + max(chunk, len(F) // 8)]]
+        if np.any(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]) != 0):
+            return True
+    return False
+
+
 def clean_mesh(V, F) -> CleanMesh:
     """Validate a mesh and return its working copy.
 
@@ -116,34 +146,35 @@ def clean_mesh(V, F) -> CleanMesh:
             f"face indices out of range: they must lie in [0, {n - 1}], found {int(F.min())}..{int(F.max())}")
 
     # Merge vertices at identical positions (STL soup, seams) so connectivity is real.
-    uniq, inverse = np.unique(V, axis=0, return_inverse=True)
-    inverse = inverse.ravel()
-    Fm = inverse[F]
+    uniq, inverse = _merge_identical(V)
+    merged = n - len(uniq)
+    Fm = inverse[F] if merged else F
     ok = (Fm[:, 0] != Fm[:, 1]) & (Fm[:, 1] != Fm[:, 2]) & (Fm[:, 0] != Fm[:, 2])
-    dropped = int((~ok).sum())
-    Fm = Fm[ok]
+    dropped = int(len(Fm) - np.count_nonzero(ok))
+    if dropped:
+        Fm = Fm[ok]
     if len(Fm) == 0:
         raise CurveSkelError("every face is degenerate (repeated vertices): nothing to skeletonize")
-    a = uniq[Fm[:, 1]] - uniq[Fm[:, 0]]
-    b = uniq[Fm[:, 2]] - uniq[Fm[:, 0]]
-    area2 = np.linalg.norm(np.cross(a, b), axis=1)
-    if not np.any(area2 > 0):
+    if not _any_positive_area(uniq, Fm):
         raise CurveSkelError("every face has zero area: nothing to skeletonize")
 
-    # Keep referenced vertices only; renumber.
-    used = np.zeros(len(uniq), bool)
-    used[Fm.ravel()] = True
-    new_id = np.full(len(uniq), -1, np.int64)
-    new_id[used] = np.arange(int(used.sum()))
-    Vw = uniq[used]
-    Fw = new_id[Fm]
-    work_index = new_id[inverse]
+    # Keep referenced vertices only; renumber. Clean meshes (the common case) skip the copies.
+    used = np.bincount(Fm.ravel(), minlength=len(uniq)) > 0
+    n_used = int(np.count_nonzero(used))
+    if n_used == len(uniq):
+        Vw, Fw = uniq, Fm
+        work_index = inverse
+    else:
+        new_id = np.full(len(uniq), -1, np.int64)
+        new_id[used] = np.arange(n_used)
+        Vw = uniq[used]
+        Fw = new_id[Fm]
+        work_index = new_id[inverse]
     info = {
         "input_vertices": n,
         "input_faces": int(len(F)),
-        "merged_duplicates": int(n - len(uniq)),
+        "merged_duplicates": int(merged),
         "degenerate_faces_dropped": dropped,
-        "zero_area_faces": int((area2 == 0).sum()),
-        "isolated_vertices": int((work_index < 0).sum()),
+        "isolated_vertices": int(len(uniq) - n_used),
     }
     return CleanMesh(Vw, Fw, work_index, info)

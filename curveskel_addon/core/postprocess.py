@@ -48,6 +48,12 @@ def _energy(pr: FitProblem) -> float:
     return float(np.dot(pr.weights, e * e))
 
 
+def _radius_at(pr: FitProblem) -> np.ndarray:
+    """(n,) radius at sigma_v."""
+    i, j = pr.bones[pr.bone, 0], pr.bones[pr.bone, 1]
+    return pr.t * pr.joints[i, 3] + (1.0 - pr.t) * pr.joints[j, 3]
+
+
 def _project(P, Xi, Xj):
     """Closest point parameters on segments: t with sigma = t*Xi + (1-t)*Xj, clamped to [0, 1].
 
@@ -257,22 +263,34 @@ def prune_branches(pr: FitProblem, threshold: float, *, max_rounds: int = 50) ->
 
 
 # -- chain simplification ----------------------------------------------------------------------
-def _merge_costs(pr: FitProblem):
+def _merge_costs(pr: FitProblem, max_offset: float = np.inf):
     """For every joint of degree 2: the E increase of merging its two bones into one.
 
-    Returns (cand (k,), cost (k,), nbrs (k, 2), bones (k, 2), new_t_end) where the merged bone
-    of candidate c is ``(nbrs[c, 0], nbrs[c, 1])`` and ``new_t_end[s]`` (n,) is the new t of every
-    vertex for the merge at end s of its bone (NaN where that end is no candidate).
+    The vertices of the two bones are re-mapped to the closest point of the merged bone *or* of
+    a bone sharing one of its end joints (a local re-fit of sigma, as between solver steps), so
+    a vertex that the merged bone explains badly can move to a neighbouring bone.
+
+    Returns
+    -------
+    cand : (k,) int           the joints that can be merged
+    cost : (k,) float         exact change of E of each merge, nothing else moving
+    nbrs : (k, 2) int         (a, c): the merged bone
+    cb : (k, 2) int           the two bones replaced (the first is re-used for (a, c))
+    new : list of 2 (bone (n,), t (n,))
+        For the merge at end s of each vertex's bone: its new bone (-1 = the merged bone) and t;
+        bone -2 where end s of its bone is no candidate.
     """
     J, B = len(pr.joints), pr.bones
+    nB = len(B)
     deg = _degree(J, B)
-    # For each joint of degree 2, its two bones (via sorting the incidence list).
+    # Incidence lists (CSR) by sorting the bone ends.
     ends = B.ravel()                                        # joint of (bone, end)
-    binc = np.repeat(np.arange(len(B)), 2)
+    binc = np.repeat(np.arange(nB), 2)
     o = np.argsort(ends, kind="stable")
+    inc_ptr = np.searchsorted(ends[o], np.arange(J + 1))
+    inc_b = binc[o]
     cand = np.flatnonzero(deg == 2)
-    first = np.searchsorted(ends[o], cand)
-    b1, b2 = binc[o[first]], binc[o[first + 1]]
+    b1, b2 = inc_b[inc_ptr[cand]], inc_b[inc_ptr[cand] + 1]
     other = lambda b, j: np.where(B[b, 0] == j, B[b, 1], B[b, 0])  # noqa: E731
     a, c = other(b1, cand), other(b2, cand)
     ok = (a != c) & (b1 != b2)
@@ -280,40 +298,66 @@ def _merge_costs(pr: FitProblem):
     key = lambda x, y: np.minimum(x, y) * J + np.maximum(x, y)  # noqa: E731
     existing = np.unique(key(B[:, 0], B[:, 1]))
     ok &= ~np.isin(key(a, c), existing)
+    # Geometric guard: the joint must lie within max_offset * r_j of the merged bone, so the
+    # new bone stays inside the old silhouette (E alone does not see a bone leaving the shape).
+    _, d2j = _project(pr.joints[cand, :3], pr.joints[a, :3], pr.joints[c, :3])
+    ok &= np.sqrt(d2j) <= max_offset * np.abs(pr.joints[cand, 3])
     cand, b1, b2, a, c = cand[ok], b1[ok], b2[ok], a[ok], c[ok]
+    k = len(cand)
 
-    # Per vertex: is an end of its bone a candidate? Evaluate the merged segment for each end.
+    # Candidate bones of each merge: the merged bone (index nB + m in Bx), then the other bones
+    # at a and at c. A loop over merges (a few hundred), not over vertices.
+    Bx = np.concatenate([B, np.stack([a, c], 1)])
+    lists = []
+    for m in range(k):
+        nb = np.concatenate([inc_b[inc_ptr[a[m]]:inc_ptr[a[m] + 1]], inc_b[inc_ptr[c[m]]:inc_ptr[c[m] + 1]]])
+        nb = np.unique(nb[(nb != b1[m]) & (nb != b2[m])])
+        lists.append(np.concatenate([[nB + m], nb]))
+    cnt = np.array([len(x) for x in lists], np.int64)
+    cptr = np.concatenate([[0], np.cumsum(cnt)])
+    cids = np.concatenate(lists) if lists else np.zeros(0, np.int64)
+
     slot = np.full(J, -1)
-    slot[cand] = np.arange(len(cand))
+    slot[cand] = np.arange(k)
     e_now = residuals(pr.points, pr.joints, B, pr.bone, pr.t)
     w = pr.weights
-    cost = np.zeros(len(cand))
-    new_t = []
-    X, R = pr.joints[:, :3], pr.joints[:, 3]
+    cost = np.zeros(k)
+    new = []
+    from .mapping import closest_on_bones
+
     for s in (0, 1):
-        jv = B[pr.bone, s]
-        cv = slot[jv]
-        m = cv >= 0
-        tn = np.full(len(pr.points), np.nan)
-        if m.any():
+        cv = slot[B[pr.bone, s]]
+        m = np.flatnonzero(cv >= 0)
+        nbone = np.full(len(pr.points), -2, np.int64)
+        nt = np.zeros(len(pr.points))
+        if len(m):
             ci = cv[m]
-            tt, d2 = _project(pr.points[m], X[a[ci]], X[c[ci]])
-            r = tt * R[a[ci]] + (1 - tt) * R[c[ci]]
-            en = d2 - r * r
-            cost += np.bincount(ci, weights=w[m] * (en * en - e_now[m] ** 2), minlength=len(cand))
-            tn[m] = tt
-        new_t.append(tn)
-    return cand, cost, np.stack([a, c], 1), np.stack([b1, b2], 1), new_t
+            cc = cnt[ci]
+            indptr = np.concatenate([[0], np.cumsum(cc)])
+            local = np.arange(indptr[-1]) - np.repeat(indptr[:-1], cc)
+            ids = cids[np.repeat(cptr[ci], cc) + local]
+            bb, tt, _ = closest_on_bones(pr.points[m], pr.joints, Bx, (indptr, ids))
+            en = residuals(pr.points[m], pr.joints, Bx, bb, tt)
+            cost += np.bincount(ci, weights=w[m] * (en * en - e_now[m] ** 2), minlength=k)
+            nbone[m] = np.where(bb >= nB, -1, bb)
+            nt[m] = tt
+        new.append((nbone, nt))
+    return cand, cost, np.stack([a, c], 1), np.stack([b1, b2], 1), new
 
 
-def simplify_chains(pr: FitProblem, threshold: float, *, max_rounds: int = 200) -> tuple[FitProblem, dict]:
+def simplify_chains(pr: FitProblem, threshold: float, *, max_offset: float = 0.25,
+                    floor: float = 0.01, max_rounds: int = 200) -> tuple[FitProblem, dict]:
     """Merge degree-2 joints whose removal barely changes E, cheapest first.
 
     A merge removes joint j with bones (a, j), (j, c) and puts the bone (a, c) in their place;
     the vertices of both bones are re-mapped to it by orthogonal projection (t clamped to [0, 1]).
     Its cost is the exact change of E with nothing else moving. The total cost of all merges
-    is kept within a budget of ``threshold * E`` (E of the input), so the result satisfies
-    ``E_after <= (1 + threshold) * E_before`` before any re-optimisation (which only lowers E).
+    is kept within a budget of ``threshold * max(E, floor^2 * S)``, where E is the input's energy
+    and ``S = sum_v w_v |v - sigma_v|^4`` the energy of the same mapping with zero radii (the
+    scale of E). The floor is the E of a fit whose residual is ``floor`` (1 %) of ``|v - sigma|^2``
+    at every vertex: without it a near-exact fit (a cylinder, E ~ 1e-12) could merge nothing.
+    So ``E_after <= E_before + threshold * max(E_before, floor^2 S)`` before any re-optimisation
+    (which only lowers E).
 
     Each round computes every candidate's cost in one vectorised pass over the vertices, then
     accepts candidates in increasing cost while the budget lasts, skipping a candidate adjacent to
@@ -327,24 +371,38 @@ def simplify_chains(pr: FitProblem, threshold: float, *, max_rounds: int = 200) 
         Usually optimised; not modified.
     threshold : float >= 0
         Allowed relative increase of E (0 disables; 0.01 allows 1 %).
+    max_offset : float
+        A joint is merged only if it lies within ``max_offset * r_j`` of the merged bone
+        (a geometric guard keeping bones inside the shape; ``np.inf`` disables it).
+    floor : float
+        Relative residual below which a fit counts as exact (see above; 0 disables the floor).
 
     Returns
     -------
     FitProblem, dict
-        The simplified problem and {"merged", "rounds", "energy_before", "energy_after"}.
+        The simplified problem and {"merged", "rounds", "energy_before", "energy_after",
+        "budget"}.
     """
     pr = pr.copy()
     E0 = _energy(pr)
-    info = {"merged": 0, "rounds": 0, "energy_before": E0, "energy_after": E0}
+    info = {"merged": 0, "rounds": 0, "energy_before": E0, "energy_after": E0, "budget": 0.0}
     if threshold <= 0:
         return pr, info
-    budget = threshold * E0
+    d2 = residuals(pr.points, pr.joints, pr.bones, pr.bone, pr.t) + _radius_at(pr) ** 2
+    S = float(np.dot(pr.weights, d2 * d2))
+    budget = threshold * max(E0, floor * floor * S)
+    info["budget"] = budget
     spent = 0.0
     for _ in range(max_rounds):
-        cand, cost, nbrs, cb, new_t = _merge_costs(pr)
+        cand, cost, nbrs, cb, new = _merge_costs(pr, max_offset)
         if len(cand) == 0:
             break
         blocked = np.zeros(len(pr.joints), bool)
+        ends = pr.bones.ravel()
+        o = np.argsort(ends, kind="stable")
+        ptr = np.searchsorted(ends[o], np.arange(len(pr.joints) + 1))
+        partner = pr.bones[:, ::-1].ravel()[o]           # the other joint of each incidence
+        nbr_of = lambda x: partner[ptr[x]:ptr[x + 1]]  # noqa: E731
         acc = []
         for k in np.argsort(cost, kind="stable"):
             if spent + cost[k] > budget:
@@ -356,7 +414,10 @@ def simplify_chains(pr: FitProblem, threshold: float, *, max_rounds: int = 200) 
                 continue
             acc.append(k)
             spent += cost[k]
-            blocked[[j, nbrs[k, 0], nbrs[k, 1]]] = True
+            # Block the 2-ring: the merge re-maps vertices onto bones at a and c, which must
+            # not change in this round.
+            ring = np.concatenate([[j], nbrs[k], nbr_of(nbrs[k, 0]), nbr_of(nbrs[k, 1])])
+            blocked[ring] = True
         if not acc:
             break
         acc = np.asarray(acc)
@@ -365,10 +426,11 @@ def simplify_chains(pr: FitProblem, threshold: float, *, max_rounds: int = 200) 
         slot = np.full(len(pr.joints), -1)
         slot[cand[acc]] = acc
         for s in (0, 1):                                  # vertices whose bone end s is merged
-            m = slot[pr.bones[pr.bone, s]] >= 0
-            m &= ~np.isnan(new_t[s])
-            t[m] = new_t[s][m]
-            bone[m] = cb[slot[pr.bones[pr.bone[m], s]], 0]
+            nbone, nt = new[s]
+            m = np.flatnonzero((slot[pr.bones[pr.bone, s]] >= 0) & (nbone > -2))
+            merged_bone = cb[slot[pr.bones[pr.bone[m], s]], 0]
+            bone[m] = np.where(nbone[m] == -1, merged_bone, nbone[m])
+            t[m] = nt[m]
         bones[cb[acc, 0]] = nbrs[acc]                     # (a, c) replaces (a, j); t refers to a, c
         keep_bone[cb[acc, 1]] = False
         pr.bones, pr.bone, pr.t = bones, bone, t

@@ -44,6 +44,8 @@ joints, bones, leaves, branch_points
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
@@ -130,15 +132,23 @@ def _primitives(joints, bones):
     return joints[i, :3], joints[j, :3], r[i], r[j]
 
 
-def _min_over_primitives(P, centres, rho, fn, *, k=8):
+def _min_over_primitives(P, centres, rho, fn, *, k=8, upper=None):
     """Exact ``min_j fn(P_i, j)`` for every point, with pruning.
 
     ``fn(pi, pj)`` evaluates the (signed) distance of points ``P[pi]`` to primitives ``pj``
     (index arrays of equal length); it must satisfy ``fn >= |P_i - centres_j| - rho_j``
     (the primitive lies in the ball ``B(centres_j, rho_j)``). Candidates are the k nearest
-    centres; a point is settled when ``|P - c_(k)| - max rho >= best``, else k grows.
-    Primitives with an outlying ``rho`` are evaluated for every point (brute force) so one huge
-    primitive does not defeat the pruning.
+    centres, k growing 4-fold until ``|P - c_(k)| - max rho`` reaches the best value (no unseen
+    primitive can then be smaller); within the candidates, ``fn`` is evaluated only where the
+    bound ``|P - c_j| - rho_j`` is below the best value so far. Primitives with an outlying
+    ``rho`` are evaluated for every point (brute force) so one huge primitive does not defeat
+    the pruning.
+
+    Parameters
+    ----------
+    upper : (n,) float, optional
+        A value known to be attained by some primitive (e.g. the distance to the nearest mesh
+        vertex): tightens the pruning from the start.
 
     Returns
     -------
@@ -147,6 +157,7 @@ def _min_over_primitives(P, centres, rho, fn, *, k=8):
     n, m = len(P), len(centres)
     best = np.full(n, np.inf)
     arg = np.full(n, -1, np.int64)
+    ub = np.full(n, np.inf) if upper is None else np.asarray(upper, dtype=np.float64).copy()
     if n == 0 or m == 0:
         return best, arg
 
@@ -176,7 +187,7 @@ def _min_over_primitives(P, centres, rho, fn, *, k=8):
     tree = cKDTree(centres[small])
     rmax = float(rho[small].max())
     todo = np.arange(n)
-    kk = min(k, small.size)
+    kprev, kk = 0, min(k, small.size)
     while todo.size:
         step = max(1, _CHUNK // kk)
         settled = []
@@ -184,18 +195,56 @@ def _min_over_primitives(P, centres, rho, fn, *, k=8):
             pi = todo[s:s + step]
             d, idx = tree.query(P[pi], k=kk)
             d = d.reshape(len(pi), kk)
-            idx = idx.reshape(len(pi), kk)
-            pj = small[idx]
-            v = fn(np.repeat(pi, kk), pj.ravel()).reshape(len(pi), kk)
-            a = np.argmin(v, axis=1)
-            vmin = v[np.arange(len(pi)), a]
-            upd = vmin < best[pi]
-            best[pi[upd]] = vmin[upd]
-            arg[pi[upd]] = pj[np.arange(len(pi)), a][upd]
-            ok = (d[:, -1] - rmax >= best[pi]) if kk < small.size else np.ones(len(pi), bool)
+            pj = small[idx.reshape(len(pi), kk)[:, kprev:]]
+            lb = d[:, kprev:] - rho[pj]
+            need = lb <= np.minimum(best[pi], ub[pi])[:, None]
+            rows, cols = np.nonzero(need)
+            if rows.size:
+                jj = pj[rows, cols]
+                v = fn(pi[rows], jj)
+                order = np.lexsort((v, rows))          # per row, smallest value first
+                rows, v, jj = rows[order], v[order], jj[order]
+                first = np.concatenate([[True], rows[1:] != rows[:-1]])
+                r0, v0, j0 = rows[first], v[first], jj[first]
+                upd = v0 < best[pi[r0]]
+                best[pi[r0[upd]]] = v0[upd]
+                arg[pi[r0[upd]]] = j0[upd]
+            if kk < small.size:
+                far = d[:, -1] - rmax
+                ok = (far >= best[pi]) | (far > ub[pi])
+            else:
+                ok = np.ones(len(pi), bool)
             settled.append(ok)
         todo = todo[~np.concatenate(settled)]
-        kk = min(kk * 4, small.size)
+        kprev, kk = kk, min(kk * 4, small.size)
+        if kk > 128 and todo.size:
+            break
+    if todo.size:
+        # Far points (many primitives at similar distances): every primitive whose ball can beat
+        # the best value, from one ball query each (no k-nearest heap of huge k).
+        step = max(1, _CHUNK // 1024)
+        for s in range(0, todo.size, step):
+            pi = todo[s:s + step]
+            radius = np.minimum(best[pi], ub[pi]) + rmax
+            lists = tree.query_ball_point(P[pi], radius, return_sorted=False)
+            cnt = np.fromiter((len(x) for x in lists), np.int64, len(lists))
+            if cnt.sum() == 0:
+                continue
+            jj = small[np.fromiter(itertools.chain.from_iterable(lists), np.int64, int(cnt.sum()))]
+            pp = np.repeat(pi, cnt)
+            lb = np.linalg.norm(P[pp] - centres[jj], axis=1) - rho[jj]
+            keep = lb <= np.minimum(best[pp], ub[pp])
+            pp, jj = pp[keep], jj[keep]
+            for c0 in range(0, pp.size, _CHUNK):
+                pc, jc = pp[c0:c0 + _CHUNK], jj[c0:c0 + _CHUNK]
+                v = fn(pc, jc)
+                order = np.lexsort((v, pc))
+                pc, v, jc = pc[order], v[order], jc[order]
+                first = np.concatenate([[True], pc[1:] != pc[:-1]])
+                p0, v0, j0 = pc[first], v[first], jc[first]
+                upd = v0 < best[p0]
+                best[p0[upd]] = v0[upd]
+                arg[p0[upd]] = j0[upd]
     return best, arg
 
 
@@ -329,7 +378,9 @@ def mesh_distance(P, V, F):
     def fn(pi, pj):
         return point_triangle_distance(P[pi], T[pj, 0], T[pj, 1], T[pj, 2])
 
-    best, _ = _min_over_primitives(P, cen, rho, fn)
+    used = np.unique(F)
+    upper = cKDTree(V[used]).query(P)[0]          # distance to the nearest vertex: attained
+    best, _ = _min_over_primitives(P, cen, rho, fn, upper=upper)
     return best
 
 
@@ -658,7 +709,7 @@ def quality(V, F, skeleton, *, n_samples=20000, seed=0, bone_samples=10) -> dict
     -------
     dict
         Floats and ints, JSON-ready; keys as in the module docstring plus ``D`` and
-        ``seconds`` (time per measure group).
+        ``measure_seconds`` (time per measure group).
 
     Examples
     --------
@@ -732,5 +783,5 @@ def quality(V, F, skeleton, *, n_samples=20000, seed=0, bone_samples=10) -> dict
     out["joints"] = int(len(joints))
     out["bones"] = int(len(bones))
     secs["topology"] = time.perf_counter() - t0
-    out["seconds"] = secs
+    out["measure_seconds"] = secs
     return out

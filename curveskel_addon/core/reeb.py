@@ -4,10 +4,11 @@ The paper (section 4.1, eqs. 21-23) grows contour lines as sets of *vertices*. T
 that depends on how uniform the mesh is (a long edge skips a contour) and is not well defined
 where the level set splits. We implement this discrete version instead:
 
-1. **f and levels.** f is the graph-geodesic distance from the pole (:mod:`pole`). Levels are
-   c_k = k * s, k = 1..K, with s = spacing * (bounding-box diagonal), but at least 6 levels over
-   max f and at most 400 (1600 after refinement). A vertex is *above* level c iff f >= c; its
-   *band* is the number of levels <= f.
+1. **f and levels.** f is the graph-geodesic distance from the pole (:mod:`pole`, which also
+   explains how the pole is kept at the tip of an extremity). Levels are c_k = k * s,
+   k = 1..K, c_K < max f, with s = spacing * (bounding-box diagonal), but at least 6 and at most
+   400 levels (1600 after refinement). A vertex is *above* level c iff f >= c (this breaks ties
+   of vertices lying exactly on a level); its *band* is the number of levels <= f.
 2. **Contour loops.** Every mesh edge (a, b) with f_a < c <= f_b gets a crossing point at the
    linear interpolation; an edge may cross many levels (all crossings are generated at once with
    ``np.repeat``). A triangle crossed by level c has exactly two crossing sides: a segment.
@@ -18,12 +19,17 @@ where the level set splits. We implement this discrete version instead:
    band(min f)..band(max f); each (triangle, band) is a convex, hence connected, *piece*. Pieces
    sharing a mesh edge whose f-range meets their band are joined; connected components are the
    regions. A region may hold no vertex at all (inside long edges), which is why regions are
-   built from pieces. To stay fast, pieces of one-band triangles are represented by their
-   vertices (same-band edges join vertices), only multi-band triangles get piece nodes; pieces
-   meeting at a vertex are joined too, which keeps non-manifold (pinched) vertices connected.
+   built from pieces. To stay fast on million-face meshes the components are found in two
+   passes: vertices joined by edges lying inside one band ("blobs", a sort-free sparse graph),
+   then a small graph of blobs and the pieces of multi-band triangles only (a one-band
+   triangle's piece adds nothing its three vertices do not). Each corner of a multi-band
+   triangle joins its vertex's blob to the triangle's piece of that band, which also keeps a
+   non-manifold (pinched) vertex connected; triangles sharing an edge that spans >= 3 bands join
+   their pieces of the inner bands (non-manifold edges: consecutive triangles of the edge).
 4. **Reeb graph.** Nodes are regions, each loop is an edge between the region below and above
    it. Its cycle count b1 = L - R + C must equal the genus g of a closed component
-   (g = (2 - chi) / 2). When b1 < g a handle fell inside one region: s is halved and everything
+   (g = (2 - chi) / 2); a loop with the same region on both sides is not counted, since the
+   skeleton cannot show that cycle. When b1 < g a handle fell inside one region: s is halved and everything
    rebuilt (at most 3 times; ``meta["refinements"]``).
 5. **Noise caps.** Local maxima of a graph-geodesic f (noise, and the uneven last band) make
    small cap regions bounded by one loop below them: spurious branch tips. A cap whose height
@@ -40,11 +46,18 @@ where the level set splits. We implement this discrete version instead:
    degenerate configurations) also gets its own joint, so no bone is duplicated. A bone that
    would have zero length has its region joint nudged by 1e-6 of the diagonal towards the
    region's vertex centroid (or along +x), so every bone has a direction.
-7. **Mapping** (:mod:`mapping`): each vertex maps to the closest point of the bones of its
-   region.
+7. **Mapping** (:mod:`mapping`, paper eqs. 18-19): each vertex maps to the closest point of the
+   bones of its own region. The region is where the Reeb graph puts the vertex, so sigma
+   respects the topology (a fingertip never maps to the neighbouring finger however close it
+   is), and the closest point gives a continuous t along the bone rather than the paper's
+   constant per contour.
 
-A component too small for levels (max f = 0 or fewer than 3 vertices) gets one bone along its
-principal axis.
+Cost: everything is vectorised over vertices, edges, faces and crossings; Python loops run over
+loops and regions only (one MEB each). Two Dijkstra runs dominate (see :mod:`pole`).
+Timings per stage are returned in ``meta["timings"]``.
+
+A component too small for levels (fewer than 3 vertices, or all vertices at one position) gets
+one bone along its principal axis, so every vertex still has a bone.
 """
 
 from __future__ import annotations
@@ -235,11 +248,14 @@ def _regions(n, E, F, ct: _Contours) -> _Reeb:
 
 
 def _cycles(n_reg, below, above) -> int:
+    """b1 = L - R + C of the Reeb graph, not counting a loop with the same region on both sides
+    (the skeleton cannot represent that cycle, so it must trigger a refinement)."""
     if n_reg == 0:
         return 0
-    G = sp.coo_matrix((np.ones(len(below)), (below, above)), shape=(n_reg, n_reg))
+    ok = below != above
+    G = sp.coo_matrix((np.ones(int(ok.sum())), (below[ok], above[ok])), shape=(n_reg, n_reg))
     nc, _ = connected_components(G, directed=False)
-    return int(len(below) - n_reg + nc)
+    return int(ok.sum() - n_reg + nc)
 
 
 def _remove_noise_caps(rb: _Reeb, ct: _Contours, f, pole, s) -> tuple[_Reeb, np.ndarray, int]:
@@ -319,7 +335,7 @@ def _embed(V, diag, ct: _Contours, rb: _Reeb, kept):
         bones.append((i, j)); bone_reg.append(b_reg)
     for g in own:
         vs = vorder[vstarts[g]:vstarts[g + 1]]
-        ls = lid[lorder[lstarts[g]:lstarts[g + 1]]]
+        ls = np.unique(lid[lorder[lstarts[g]:lstarts[g + 1]]])    # a loop may bound g twice
         pts = [V[vs]] + [ct.P[xorder[xstarts[l]:xstarts[l + 1]]] for l in ls]
         c, r = min_enclosing_ball(np.concatenate(pts))
         if len(vs):
@@ -434,16 +450,16 @@ def first_approximation(V, F, *, spacing: float, seed: int) -> FirstApproximatio
     maxf = float(f.max())
     meta = {"pole": int(pole), "timings": timings, "expected_cycles": None, "cycles": 0,
             "noise_caps_removed": 0, "refinements": 0}
-    if n < 3 or maxf <= 0:
+    if n < 3 or diag <= 0 or maxf <= 0:
         joints, bones = _single_bone(V, diag)
         return _finish(V, joints, bones, None, meta | {"spacing_used": 1.0, "levels": 0,
                                                        "regions": 1, "loops": 0}, timings)
     expected = _expected_cycles(n, E, ecount, m)
-    s = min(spacing * diag, maxf / MIN_LEVELS)
+    s = min(spacing * diag, maxf / (MIN_LEVELS + 1))
     cap = MAX_LEVELS
     for attempt in range(MAX_REFINEMENTS + 1):
-        s = max(s, maxf / cap)
-        K = max(int(np.ceil(maxf / s)) - 1, 1)
+        s = max(s, maxf / (cap + 1))
+        K = max(int(np.ceil(maxf / s)) - 1, 1)     # levels c_1..c_K < max f
         t0 = time.perf_counter()
         ct = _contours(V, F, E, f, s, K)
         timings["contours"] = timings.get("contours", 0.0) + time.perf_counter() - t0
@@ -452,7 +468,7 @@ def first_approximation(V, F, *, spacing: float, seed: int) -> FirstApproximatio
         timings["reeb"] = timings.get("reeb", 0.0) + time.perf_counter() - t0
         if expected is None or rb.cycles >= expected or attempt == MAX_REFINEMENTS:
             break
-        if s <= maxf / MAX_LEVELS_REFINED * 1.0000001:
+        if s <= maxf / (MAX_LEVELS_REFINED + 1) * 1.0000001:
             break
         s, cap = s / 2, MAX_LEVELS_REFINED
         meta["refinements"] = attempt + 1

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .energy import bone_terms
+from .energy import sigma_terms
 from .problem import FitProblem
 
 __all__ = ["bone_neighbours", "project_on_bones", "refit_mapping"]
@@ -76,15 +76,18 @@ def bone_neighbours(bones: np.ndarray, n_joints: int | None = None) -> tuple[np.
 
 
 def project_on_bones(points: np.ndarray, joints: np.ndarray, bones: np.ndarray,
-                     bone_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Closest point of bone ``bone_ids[v]`` to each point.
+                     bone_ids: np.ndarray, rows: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Closest point of bone ``bone_ids[k]`` to point ``points[rows[k]]`` (or ``points[k]``).
 
     Parameters
     ----------
-    points : (m, 3) float
+    points : (n, 3) float
     joints : (J, 4) float
     bones : (B, 2) int
     bone_ids : (m,) int
+    rows : (m,) int, optional
+        Which points (default: all, ``m == n``).
 
     Returns
     -------
@@ -105,12 +108,19 @@ def project_on_bones(points: np.ndarray, joints: np.ndarray, bones: np.ndarray,
     u = X[bones[:, 0]] - xj
     uu = np.einsum("ij,ij->i", u, u)
     inv = np.divide(1.0, uu, out=np.zeros_like(uu), where=uu > 0)
-    a = points - xj[bone_ids]
-    ub = u[bone_ids]
-    t = np.einsum("ij,ij->i", a, ub) * inv[bone_ids]
-    t = np.where(uu[bone_ids] > 0, np.clip(t, 0.0, 1.0), 0.5)
-    a -= t[:, None] * ub
-    return t, np.einsum("ij,ij->i", a, a)
+    xj, u = np.ascontiguousarray(xj.T), np.ascontiguousarray(u.T)     # (3, B): 1-D takes
+    m = len(bone_ids)
+    a, ub = np.empty((3, m)), np.empty((3, m))
+    for c in range(3):
+        pc = points[:, c] if rows is None else np.take(points[:, c], rows)
+        np.subtract(pc, np.take(xj[c], bone_ids), out=a[c])
+        ub[c] = np.take(u[c], bone_ids)
+    t = a[0] * ub[0] + a[1] * ub[1] + a[2] * ub[2]
+    t *= np.take(inv, bone_ids)
+    np.clip(t, 0.0, 1.0, out=t)
+    t[np.take(uu, bone_ids) == 0] = 0.5
+    a -= t * ub
+    return t, a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
 
 
 def refit_mapping(pr: FitProblem, neighbours: tuple[np.ndarray, np.ndarray] | None = None,
@@ -149,26 +159,23 @@ def refit_mapping(pr: FitProblem, neighbours: tuple[np.ndarray, np.ndarray] | No
     """
     table, count = bone_neighbours(pr.bones, len(pr.joints)) if neighbours is None else neighbours
     if e_old is None:
-        e_old = bone_terms(pr)[4]
+        e_old = sigma_terms(pr)[2]
     P, bone = pr.points, pr.bone
     best_b = bone.copy()
     best_t, best_d2 = project_on_bones(P, pr.joints, pr.bones, bone)
     if table.shape[1] > 1:
-        c = count[bone]
-        order = np.argsort(-c, kind="stable")
-        c_sorted = c[order]
+        c = np.take(count, bone)
         for k in range(1, table.shape[1]):
-            m = int(np.searchsorted(-c_sorted, -k, side="left"))   # points with count > k
-            if m == 0:
+            sub = np.flatnonzero(c > k)           # points whose bone has a k-th candidate
+            if len(sub) == 0:
                 break
-            sub = order[:m]
-            cb = table[bone[sub], k]
-            tk, d2k = project_on_bones(P[sub], pr.joints, pr.bones, cb)
+            cb = np.take(table[:, k], np.take(bone, sub))
+            tk, d2k = project_on_bones(P, pr.joints, pr.bones, cb, rows=sub)
             better = d2k < best_d2[sub]
             sb = sub[better]
             best_b[sb], best_t[sb], best_d2[sb] = cb[better], tk[better], d2k[better]
     cand = FitProblem(P, pr.weights, pr.joints, pr.bones, best_b, best_t)
-    e_new = bone_terms(cand)[4]
+    e_new = sigma_terms(cand)[2]
     take = np.abs(e_new) < np.abs(e_old)
     new_bone = np.where(take, best_b, bone)
     new_t = np.where(take, best_t, pr.t)

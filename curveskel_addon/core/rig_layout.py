@@ -218,7 +218,7 @@ def rig_layout(joints, bones, *, root=None, up=(0.0, 0.0, 1.0), merge_tol=None) 
     diag = float(np.linalg.norm(np.ptp(X, axis=0))) if J > 1 else 0.0
     tol = max(1e-6 * diag, 1e-5) if merge_tol is None else float(merge_tol)
 
-    # -- merge coincident joints (bones shorter than tol) ------------------------------------------
+    # -- merge coincident joints (bones shorter than tol) --------------------------------------------
     L = np.linalg.norm(X[E[:, 0]] - X[E[:, 1]], axis=1)
     short = L < tol
     Gs = coo_matrix((np.ones(short.sum()), (E[short, 0], E[short, 1])), shape=(J, J))
@@ -230,7 +230,7 @@ def rig_layout(joints, bones, *, root=None, up=(0.0, 0.0, 1.0), merge_tol=None) 
     collapsed = M[:, 0] == M[:, 1]
     live = np.flatnonzero(~collapsed)
 
-    # -- parts and roots ---------------------------------------------------------------------------
+    # -- parts and roots -----------------------------------------------------------------------------
     used = np.zeros(J, bool)
     used[M.ravel()] = True
     w = np.maximum(L[live], tol)
@@ -262,7 +262,7 @@ def rig_layout(joints, bones, *, root=None, up=(0.0, 0.0, 1.0), merge_tol=None) 
     roots = np.array([part_roots[c] for c in parts], np.int64)
     comp_of_part = {c: k for k, c in enumerate(parts)}
 
-    # -- shortest-path tree from the roots ----------------------------------------------------------
+    # -- shortest-path tree from the roots -----------------------------------------------------------
     dist, pred, _ = dijkstra(G, directed=False, indices=roots, min_only=True, return_predecessors=True)
     dist = np.where(np.isfinite(dist), dist, np.inf)
     head = np.where(dist[M[:, 0]] <= dist[M[:, 1]], M[:, 0], M[:, 1])
@@ -277,14 +277,17 @@ def rig_layout(joints, bones, *, root=None, up=(0.0, 0.0, 1.0), merge_tol=None) 
     is_root[roots] = True
     deg = np.bincount(M[live].ravel(), minlength=J)
 
-    # -- branches -------------------------------------------------------------------------------------
+    # -- branches ------------------------------------------------------------------------------------
     # A bone continues its parent's branch when its head is a non-root joint of degree 2.
     cont = np.zeros(B, bool)
     cont[live] = (~is_root[head[live]]) & (deg[head[live]] == 2)
     nxt = np.full(B, -1, np.int64)
     for b in live[cont[live]]:
         nxt[in_tree[head[b]]] = b
-    comp_b = np.array([comp_of_part[plabel[head[b]]] for b in range(B)], np.int64) if B else np.zeros(0, np.int64)
+    part_index = np.full(J, -1, np.int64)
+    for c, k in comp_of_part.items():
+        part_index[plabel == c] = k
+    comp_b = part_index[head]
     starts = live[~cont[live]]
     starts = starts[np.lexsort((starts, dist[tail[starts]], dist[head[starts]], comp_b[starts]))]
     branch = np.full(B, -1, np.int64)
@@ -354,7 +357,7 @@ def rig_layout(joints, bones, *, root=None, up=(0.0, 0.0, 1.0), merge_tol=None) 
             parent[r] = rig_of_bone[in_tree[h]]
             connect[r] = True
 
-    # -- blend partners ------------------------------------------------------------------------------------
+    # -- blend partners ------------------------------------------------------------------------------
     def hub(j):
         return root_rig_of_joint[int(j)] if is_root[j] else int(rig_of_bone[in_tree[j]])
 
@@ -384,7 +387,7 @@ def rig_layout(joints, bones, *, root=None, up=(0.0, 0.0, 1.0), merge_tol=None) 
             else:
                 tail_mode[r], tail_partner[r] = mode, partner
 
-    # -- skeleton bone -> rig bone -------------------------------------------------------------------------
+    # -- skeleton bone -> rig bone -------------------------------------------------------------------
     bone_rig = rig_of_bone.copy()
     bone_reversed = np.zeros(B, bool)
     bone_reversed[live] = head[live] == M[live, 1]
@@ -401,13 +404,14 @@ def rig_layout(joints, bones, *, root=None, up=(0.0, 0.0, 1.0), merge_tol=None) 
     z = np.zeros((R, 3))
     for r in range(R):
         if parent[r] < 0:
-            z[r] = _perpendicular(d[r], np.array([0.0, -1.0, 0.0]) if abs(up[2]) > 0.5 else np.array([0.0, 0.0, 1.0]))
+            ref = np.array([0.0, -1.0, 0.0]) if abs(up[2]) > 0.5 else np.array([0.0, 0.0, 1.0])
+            z[r] = _perpendicular(d[r], ref)
         elif parent[r] in root_rig:
             z[r] = _perpendicular(d[r], up)
         else:
             z[r] = _transport(z[parent[r]], d[parent[r]], d[r])
 
-    # -- names ------------------------------------------------------------------------------------------------
+    # -- names ---------------------------------------------------------------------------------------
     nb = max(len(starts), 1)
     wb = max(2, len(str(nb - 1)))
     wp = max(2, len(str(max(int(pos.max()), 0))))

@@ -11,18 +11,25 @@ is blended smoothly (smoothstep) with the neighbouring bone there:
 
 With ``blend <= 0.5`` a vertex has at most 2 influences; arrays keep 4 columns (the usual limit
 of game engines), unused columns have index -1 and weight 0.
+
+The mapping itself can jump between bones where two branches' regions meet on the surface away
+from a joint (a thigh against the flank). :func:`smooth_weights` diffuses the weights a short
+distance over the mesh's edges (never across gaps in space) to close such seams, then keeps the 4
+largest influences per vertex.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from .errors import CurveSkelError
 from .mapping import closest_on_bones
 from .rig_layout import BLEND_HUB, BLEND_SYMMETRIC, RigLayout
 
-__all__ = ["skin_weights", "smoothstep", "project_on_bones", "MAX_INFLUENCES"]
+__all__ = ["skin_weights", "smooth_weights", "smoothing_iterations", "smoothstep", "project_on_bones",
+           "MAX_INFLUENCES"]
 
 MAX_INFLUENCES = 4
 
@@ -61,7 +68,8 @@ def skin_weights(layout: RigLayout, bone, t, *, blend: float = 0.25,
     Examples
     --------
     >>> from curveskel_addon.core.rig_layout import rig_layout
-    >>> lay = rig_layout([[0, 0, 0, .1], [1, 0, 0, .1], [2, 0, 0, .1], [3, 0, 0, .1]], [[0, 1], [1, 2], [2, 3]], root=0)
+    >>> J = [[0, 0, 0, .1], [1, 0, 0, .1], [2, 0, 0, .1], [3, 0, 0, .1]]
+    >>> lay = rig_layout(J, [[0, 1], [1, 2], [2, 3]], root=0)
     >>> idx, w = skin_weights(lay, [1, 1], [0.5, 1.0])      # middle of bone 1; its joint with bone 0
     >>> [lay.names[i] for i in idx[0, :1]], w[0, :2].tolist(), w[1, :2].tolist()
     (['branch00.01'], [1.0, 0.0], [0.5, 0.5])
@@ -93,6 +101,83 @@ def skin_weights(layout: RigLayout, bone, t, *, blend: float = 0.25,
     index[:, 1] = np.where(has, np.where(first, partner, r), -1)
     weight[:, 1] = np.where(has, np.where(first, share, own), 0.0)
     return index, weight
+
+
+def smoothing_iterations(radius: float, edge_length: float, *, cap: int = 30) -> int:
+    """Averaging steps that spread weights over about ``radius`` on a mesh of ``edge_length``.
+
+    Averaging over the closed 1-ring moves weight about ``edge_length * sqrt(k)`` in k steps;
+    capped at ``cap`` (dense meshes are then smoothed over a shorter distance).
+    """
+    if radius <= 0 or edge_length <= 0:
+        return 0
+    return int(min(cap, np.ceil((radius / edge_length) ** 2)))
+
+
+def smooth_weights(index, weight, edges, *, iterations: int = 10,
+                   max_influences: int = MAX_INFLUENCES, prune: float = 1e-4):
+    """Diffuse per-vertex weights over the mesh's edges; keep the largest influences.
+
+    Each step replaces a vertex's weights by their average over its closed 1-ring (itself and
+    its neighbours), so rows keep summing to 1 and regions of constant weights do not change.
+
+    Parameters
+    ----------
+    index : (n, k) int
+        Bone of each influence, -1 for none (as returned by :func:`skin_weights`).
+    weight : (n, k) float
+    edges : (e, 2) int
+        Mesh edges (vertex pairs).
+    iterations : int >= 0
+        Steps (see :func:`smoothing_iterations`).
+    max_influences : int
+        Columns of the result; the smallest weights beyond it are dropped.
+    prune : float
+        Weights below this are dropped during the steps (keeps the matrices sparse).
+
+    Returns
+    -------
+    index : (n, max_influences) int
+    weight : (n, max_influences) float
+        Sorted decreasing per row, summing to 1.
+    """
+    index = np.asarray(index, dtype=np.int64)
+    weight = np.asarray(weight, dtype=np.float64)
+    n = len(index)
+    E = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    if index.shape != weight.shape or index.ndim != 2:
+        raise CurveSkelError(f"index {index.shape} and weight {weight.shape} must be equal (n, k) arrays")
+    if len(E) and (E.min() < 0 or E.max() >= n):
+        raise CurveSkelError("edge vertex index out of range")
+    nb = int(index.max()) + 1 if index.size else 0
+    ok = index >= 0
+    rows = np.broadcast_to(np.arange(n)[:, None], index.shape)
+    W = sp.csr_matrix((weight[ok], (rows[ok], index[ok])), shape=(n, max(nb, 1)))
+    if iterations > 0 and len(E):
+        E = E[E[:, 0] != E[:, 1]]
+        A = sp.coo_matrix((np.ones(2 * len(E)), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])),
+                          shape=(n, n)).tocsr()
+        A.data[:] = 1.0                                     # duplicate edges count once
+        deg = np.asarray(A.sum(axis=1)).ravel()
+        S = (sp.diags(1.0 / (deg + 1.0)) @ (A + sp.identity(n, format="csr"))).tocsr()
+        for _ in range(int(iterations)):
+            W = S @ W
+            W.data[W.data < prune] = 0.0
+            W.eliminate_zeros()
+    W = W.tocsr()
+    W.sort_indices()
+    r = np.repeat(np.arange(n), np.diff(W.indptr))
+    order = np.lexsort((-W.data, r))                        # per row, largest first
+    rank = np.arange(len(order)) - W.indptr[r[order]]
+    sel = rank < max_influences
+    keep, rk = order[sel], rank[sel]
+    out_i = np.full((n, max_influences), -1, np.int64)
+    out_w = np.zeros((n, max_influences))
+    out_i[r[keep], rk] = W.indices[keep]
+    out_w[r[keep], rk] = W.data[keep]
+    total = out_w.sum(axis=1, keepdims=True)
+    out_w = np.divide(out_w, total, out=np.zeros_like(out_w), where=total > 0)
+    return out_i, out_w
 
 
 def project_on_bones(points, joints, bones, *, k: int = 8):

@@ -1,42 +1,22 @@
 """Armature, binding and export in headless Blender, on the L (bent capsule) and the 4-arm star.
 
 Skeletons come from the real ``skeletonize``; the armature from ``build_armature``; weights from
-``bind_mesh``. Deformed positions are read from the evaluated mesh.
+``bind_mesh``. Deformed positions are read from the evaluated mesh. conftest.py sets
+BLENDER_USER_RESOURCES, registers the add-on and empties the scene before every test.
 """
 
-import os
-import tempfile
+import math
 
-os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="curveskel-bl-"))
+import bpy
+import numpy as np
+import pytest
+from mathutils import Matrix, Quaternion
 
-import math  # noqa: E402
-
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
-
-bpy = pytest.importorskip("bpy")
-from mathutils import Matrix, Quaternion  # noqa: E402
-
-import meshes  # noqa: E402
-from curveskel_addon.armature import build_armature  # noqa: E402
-from curveskel_addon.binding import GROUPS_KEY, MODIFIER_NAME, benchmark_bind, bind_mesh  # noqa: E402
-from curveskel_addon.core import CurveSkelError, skeletonize  # noqa: E402
-from curveskel_addon.export import export_rig  # noqa: E402
-
-
-@pytest.fixture(scope="module", autouse=True)
-def registered():
-    if not hasattr(bpy.types, "CURVESKEL_OT_bind"):
-        from curveskel_addon import registration
-
-        registration.register()
-    yield
-
-
-@pytest.fixture(autouse=True)
-def empty_scene():
-    bpy.ops.wm.read_homefile(use_empty=True)
-    yield
+import meshes
+from curveskel_addon.armature import build_armature
+from curveskel_addon.binding import GROUPS_KEY, MODIFIER_NAME, benchmark_bind, bind_mesh
+from curveskel_addon.core import CurveSkelError, skeletonize
+from curveskel_addon.export import export_rig
 
 
 _SKELETONS = {}
@@ -109,7 +89,8 @@ def leaf_and_arm_bone(arm, u):
     leaves = [b for b in arm.data.bones if not b.children and b.parent is not None]
     leaf = max(leaves, key=lambda b: np.dot(np.array(b.tail_local), u))
     top = leaf
-    while top.parent is not None and top.parent.parent is not None and np.dot(np.array(top.parent.head_local), u) > 1.0:
+    while (top.parent is not None and top.parent.parent is not None
+           and np.dot(np.array(top.parent.head_local), u) > 1.0):
         top = top.parent
     return leaf, top
 
@@ -201,14 +182,18 @@ def test_posing_moves_one_arm_only(name):
         # skeletonizer can end a branch with a very short bone), then the whole arm: the
         # vertices carried by the bone and its descendants alone turn rigidly about its head.
         groups = set(ob[GROUPS_KEY])
-        while not (weight_matrix(ob, [leaf.name])[:, 0] > 1 - 1e-6).any():
+
+        def subtree_weight(bone):
+            sub = [b.name for b in [bone, *bone.children_recursive] if b.name in groups]
+            return weight_matrix(ob, sub).sum(axis=1)
+
+        while not (subtree_weight(leaf) > 1 - 1e-6).any():
             leaf = leaf.parent
         for bone, what in ((leaf, "tip"), (top, "arm")):
             rotate(arm, bone.name)
             P = evaluated(ob)
             d = np.linalg.norm(P - V, axis=1)
-            sub = [b.name for b in [bone, *bone.children_recursive] if b.name in groups]
-            W = weight_matrix(ob, sub).sum(axis=1)
+            W = subtree_weight(bone)
             pb = arm.pose.bones[bone.name]
             R = (pb.matrix @ bone.matrix_local.inverted()).to_3x3()
             head = np.array(bone.head_local)
@@ -292,11 +277,20 @@ def _skinned_vertex_count(ob):
     return sum(1 for v in ob.data.vertices if any(g.weight > 0 for g in v.groups))
 
 
+def world_positions(ob):
+    P = evaluated(ob)
+    M = np.array(ob.matrix_world)
+    return P @ M[:3, :3].T + M[:3, 3]
+
+
 def test_glb_export_reimports(tmp_path):
-    V, sk, ob, arm, fig = rigged("star")
+    M = Matrix.Translation((0.5, 0.0, 1.0)) @ Matrix.Rotation(0.3, 4, 'Z')
+    V, sk, ob, arm, fig = rigged("star", matrix=M)
     ob.data.polygons.foreach_set("use_smooth", np.ones(len(ob.data.polygons), bool))  # no normal splits
     n_bones = len(arm.data.bones)
+    before = world_positions(ob)
     out = export_rig(bpy.context, ob, arm, tmp_path / "star.glb")
+    assert ob.parent is None and np.allclose(np.array(ob.matrix_world), np.array(M), atol=1e-6)
     assert out["format"] == "GLB" and (tmp_path / "star.glb").stat().st_size > 0
     bpy.ops.wm.read_homefile(use_empty=True)
     bpy.ops.import_scene.gltf(filepath=str(tmp_path / "star.glb"))
@@ -308,6 +302,7 @@ def test_glb_export_reimports(tmp_path):
     assert len(mes[0].data.vertices) == len(V)
     assert _skinned_vertex_count(mes[0]) == len(V)
     assert any(m.type == 'ARMATURE' for m in mes[0].modifiers)
+    assert np.abs(world_positions(mes[0]) - before).max() < 1e-4   # same rest shape, same place
 
 
 def test_fbx_export_reimports(tmp_path):
@@ -329,3 +324,54 @@ def test_bind_100k_vertices_under_2s():
     assert fig["vertices"] >= 99_000
     assert fig["seconds"] < 2.0
     assert fig["unweighted"] == 0
+
+
+def test_generate_operator_binds_when_asked():
+    V, F, sk = skeleton_of("bent_capsule")
+    ob = mesh_object("L", V, F)
+    ob.vertex_groups.new(name="user_group")
+    assert bpy.ops.curveskel.generate('EXEC_DEFAULT', bind=True, make_silhouette=False) == {'FINISHED'}
+    arm = bpy.data.objects["L.skeleton"]
+    assert ob.modifiers[MODIFIER_NAME].object == arm
+    assert ob[GROUPS_KEY] and "user_group" in ob.vertex_groups
+    W = weight_matrix(ob, list(ob[GROUPS_KEY]))
+    assert np.allclose(W.sum(axis=1), 1.0, atol=1e-6)
+    assert np.abs(evaluated(ob) - V).max() < 1e-5
+    # generating again replaces the armature and re-binds in place
+    assert bpy.ops.curveskel.generate('EXEC_DEFAULT', bind=True, make_silhouette=False) == {'FINISHED'}
+    assert [m.name for m in ob.modifiers] == [MODIFIER_NAME]
+    assert ob.modifiers[MODIFIER_NAME].object == bpy.data.objects["L.skeleton"]
+    assert len([a for a in bpy.data.objects if a.type == 'ARMATURE']) == 1
+
+
+def test_command_line_bind_and_export(tmp_path, user_resources):
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    V, F, sk = skeleton_of("bent_capsule")
+    obj = tmp_path / "L.obj"
+    with open(obj, "w") as fh:
+        fh.writelines(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in V)
+        fh.writelines(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in F)
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "BLENDER_USER_RESOURCES": user_resources}
+    res = subprocess.run([sys.executable, str(root / "scripts" / "skeletonize.py"), str(obj), "--bind",
+                          "--glb", str(tmp_path / "L.glb"), "--fbx", str(tmp_path / "L.fbx")],
+                         capture_output=True, text=True, env=env, timeout=300)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "rig " in res.stdout and (tmp_path / "L.glb").stat().st_size > 0
+    assert (tmp_path / "L.fbx").stat().st_size > 0
+    bpy.ops.import_scene.gltf(filepath=str(tmp_path / "L.glb"))
+    mes = [o for o in bpy.data.objects if o.type == 'MESH' and len(o.vertex_groups)]
+    assert len(mes) == 1 and _skinned_vertex_count(mes[0]) == len(mes[0].data.vertices)
+
+
+def test_two_parts_get_two_roots():
+    V, sk, ob, arm, fig = rigged("two_capsules")
+    roots = sorted(b.name for b in arm.data.bones if b.parent is None)
+    assert roots == ["root.00", "root.01"]
+    W = weight_matrix(ob, list(ob[GROUPS_KEY]))
+    assert np.allclose(W.sum(axis=1), 1.0, atol=1e-6)
+    assert np.abs(evaluated(ob) - V).max() < 1e-5

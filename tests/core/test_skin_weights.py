@@ -7,7 +7,8 @@ import meshes
 from curveskel_addon.core import CurveSkelError, skeletonize
 from curveskel_addon.core.mapping import closest_on_bones
 from curveskel_addon.core.rig_layout import rig_layout
-from curveskel_addon.core.skin_weights import project_on_bones, skin_weights, smoothstep
+from curveskel_addon.core.skin_weights import (project_on_bones, skin_weights, smooth_weights,
+                                               smoothing_iterations, smoothstep)
 from test_rig_layout import ring_skeleton, star_skeleton
 
 
@@ -124,3 +125,35 @@ def test_real_mesh_weights(name):
     idx, w = skin_weights(lay, sk.bone, sk.t)
     check_weights(idx, w, len(V))
     assert np.all(idx[:, 0] >= 0)                          # every vertex has a weight
+
+
+def test_smooth_weights_closes_seams_and_keeps_sums():
+    # a strip of vertices 0..99 in a row: bone 0 on the left half, bone 1 on the right (a seam)
+    n = 100
+    idx = np.full((n, 4), -1)
+    w = np.zeros((n, 4))
+    idx[:, 0] = (np.arange(n) >= 50).astype(int)
+    w[:, 0] = 1.0
+    E = np.stack([np.arange(n - 1), np.arange(1, n)], 1)
+    i2, w2 = smooth_weights(idx, w, E, iterations=20)
+    check_weights(i2, w2, n)
+    W = dense(i2, w2, 2)
+    assert np.abs(np.diff(W[:, 0])).max() < 0.2             # the jump of 1 is spread out
+    assert np.allclose(W[:20, 0], 1.0) and np.allclose(W[-20:, 1], 1.0)   # far away: unchanged
+    assert np.allclose(W[:, 0], W[::-1, 1])                 # symmetric
+    i0, w0 = smooth_weights(idx, w, E, iterations=0)
+    assert np.array_equal(i0, idx) and np.array_equal(w0, w)
+
+
+def test_smooth_weights_keeps_four_largest():
+    # a star graph: centre vertex 0 joined to 6 vertices each on its own bone
+    idx = np.full((7, 4), -1)
+    w = np.zeros((7, 4))
+    idx[:, 0] = np.arange(7)
+    w[:, 0] = 1.0
+    E = np.stack([np.zeros(6, int), np.arange(1, 7)], 1)
+    i2, w2 = smooth_weights(idx, w, E, iterations=1)
+    check_weights(i2, w2, 7)
+    assert i2[0, 0] == 0 and (i2[0] >= 0).sum() == 4
+    assert smoothing_iterations(1.0, 0.1, cap=50) == 50 and smoothing_iterations(0.1, 0.1) == 1
+    assert smoothing_iterations(0.0, 0.1) == 0

@@ -37,7 +37,7 @@ def solve_steps(problem: FitProblem, *, solver: str = "lm", max_iterations: int 
         Upper bound on iterations after iteration 0.
     tolerance : float
         "paper": stop when an iteration changes E by less than ``tolerance * E0`` (eqs. 30-31).
-        "lm": stop when an iteration lowers E by less than ``tolerance * 1e-2 * E`` and the
+        "lm": stop when an iteration lowers E by less than ``tolerance / 10 * E`` and the
         Gauss-Newton model predicted no more.
     refit_mapping : bool
         Re-fit sigma (each vertex's bone and t) between steps; E still never increases.

@@ -1,0 +1,271 @@
+"""curveskel.generate in headless Blender: results, parity with the core, replacing, undo,
+the source left untouched, and every bad input reported without changing anything."""
+
+import bpy
+import numpy as np
+import pytest
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from curveskel_addon import results
+from curveskel_addon.core import SkeletonParams, skeletonize
+from meshes import capsule, torus, two_capsules
+
+
+def _graph(n, E):
+    """(number of parts, degree of each joint) of a skeleton graph."""
+    E = np.asarray(E).reshape(-1, 2)
+    G = coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(n, n))
+    parts, _ = connected_components(G, directed=False)
+    return parts, np.bincount(E.ravel(), minlength=n)
+
+
+def _silhouette_arrays(sil):
+    me = sil.data
+    co = np.empty(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    ed = np.empty(len(me.edges) * 2, np.int32)
+    me.edges.foreach_get("vertices", ed)
+    sv = me.skin_vertices[0].data
+    rad = np.empty(len(sv) * 2, np.float32)
+    sv.foreach_get("radius", rad)
+    root = np.empty(len(sv), bool)
+    sv.foreach_get("use_root", root)
+    return co.reshape(-1, 3), ed.reshape(-1, 2), rad.reshape(-1, 2), root
+
+
+def _generate(ob, **props):
+    bpy.context.view_layer.objects.active = ob
+    assert bpy.ops.curveskel.generate(**props) == {'FINISHED'}
+    return results.find_result(ob.name)
+
+
+def _check_parity(ob, found, mesh_arrays, params=None):
+    """The operator's objects hold exactly the core's skeleton for the same V, F and params."""
+    V, F = mesh_arrays(ob)
+    sk = skeletonize(V, F, params or SkeletonParams())
+    arm, sil = found["armature"], found["silhouette"]
+    co, ed, rad, root = _silhouette_arrays(sil)
+    scale = float(np.ptp(V, axis=0).max())
+    np.testing.assert_array_equal(ed, sk.bones)
+    np.testing.assert_allclose(co, sk.joints[:, :3], atol=1e-5 * scale, rtol=0)
+    np.testing.assert_allclose(rad, np.repeat(sk.joints[:, 3:], 2, axis=1), atol=1e-5 * scale, rtol=0)
+    # the armature keeps the skeleton itself (teammate's contract) and the figures
+    np.testing.assert_allclose(np.reshape(arm["curveskel_joints"], (-1, 4)), sk.joints, rtol=1e-7, atol=1e-9 * scale)
+    np.testing.assert_array_equal(np.reshape(arm["curveskel_bones"], (-1, 2)), sk.bones)
+    s = sk.summary()
+    for ob_ in (arm, sil):
+        assert ob_["curveskel_n_joints"] == s["joints"]
+        assert ob_["curveskel_n_bones"] == s["bones"]
+        assert ob_["curveskel_components"] == s["components"]
+        assert ob_["curveskel_iterations"] == s["iterations"]
+        assert ob_["curveskel_E0"] == pytest.approx(s["E0"], rel=1e-6)
+        assert ob_["curveskel_E"] == pytest.approx(s["E"], rel=1e-6)
+        assert ob_["curveskel_seconds"] >= 0
+    parts, _ = _graph(len(sk.joints), sk.bones)
+    assert root.sum() == parts            # one Skin root per connected part
+    return sk
+
+
+def test_cylinder_gives_one_chain(make_mesh, mesh_arrays):
+    ob = make_mesh("Cylinder", *capsule())
+    found = _generate(ob)
+    sk = _check_parity(ob, found, mesh_arrays)
+    parts, deg = _graph(sk.n_joints, sk.bones)
+    assert parts == 1 and sk.n_bones == sk.n_joints - 1 and deg.max() <= 2
+    arm = found["armature"]
+    assert arm.type == 'ARMATURE' and arm.name == "Cylinder.skeleton" and len(arm.data.bones) >= sk.n_bones
+    assert found["silhouette"].name == "Cylinder.silhouette"
+    coll = bpy.data.collections["CurveSkel"]
+    assert {o.name for o in coll.objects} == {"Cylinder.skeleton", "Cylinder.silhouette"}
+    assert bpy.context.view_layer.objects.active == ob      # the source stays active
+
+
+def test_torus_gives_one_loop(make_mesh, mesh_arrays):
+    ob = make_mesh("Torus", *torus())
+    sk = _check_parity(ob, _generate(ob), mesh_arrays)
+    parts, deg = _graph(sk.n_joints, sk.bones)
+    assert parts == 1 and sk.n_bones - sk.n_joints + parts == 1     # exactly one loop
+    assert (deg >= 2).sum() >= 0.8 * sk.n_joints                    # mostly the loop itself
+
+
+def test_two_components_give_two_trees(make_mesh, mesh_arrays):
+    ob = make_mesh("Pair", *two_capsules())
+    found = _generate(ob)
+    sk = _check_parity(ob, found, mesh_arrays)
+    parts, _ = _graph(sk.n_joints, sk.bones)
+    assert parts == 2 and sk.n_bones == sk.n_joints - 2
+    assert found["armature"]["curveskel_components"] == 2
+
+
+def test_suzanne_open_mesh(mesh_arrays):
+    bpy.ops.mesh.primitive_monkey_add()
+    ob = bpy.context.active_object
+    found = _generate(ob)
+    sk = _check_parity(ob, found, mesh_arrays)
+    assert sk.n_bones >= 1 and np.all(np.isfinite(sk.joints))
+
+
+def test_modifiers_applied_and_transform_copied(make_mesh, mesh_arrays):
+    """The evaluated mesh (an Array modifier makes two parts) in the object's local space."""
+    ob = make_mesh("Arrayed", *capsule(length=3.0))
+    ob.location = (1.0, -2.0, 0.5)
+    ob.rotation_euler = (0.3, 0.0, 1.1)
+    ob.scale = (2.0, 2.0, 2.0)
+    mod = ob.modifiers.new("Array", 'ARRAY')
+    mod.count = 2
+    mod.relative_offset_displace = (4.0, 0.0, 0.0)   # x is 4 diameters: a separate copy
+    found = _generate(ob)
+    sk = _check_parity(ob, found, mesh_arrays)
+    assert sk.meta["components"] == 2
+    for res in found.values():
+        np.testing.assert_allclose(np.array(res.matrix_world), np.array(ob.matrix_world), atol=1e-6)
+
+
+def test_rerun_replaces_previous_result(make_mesh, mesh_arrays):
+    ob = make_mesh("Cylinder", *capsule())
+    _generate(ob)
+    arms, meshes = len(bpy.data.armatures), len(bpy.data.meshes)
+    found = _generate(ob, spacing=0.08)
+    assert sorted(o.name for o in bpy.data.objects) == ["Cylinder", "Cylinder.silhouette", "Cylinder.skeleton"]
+    assert (len(bpy.data.armatures), len(bpy.data.meshes)) == (arms, meshes)   # no orphans left
+    assert found["armature"].data.name == "Cylinder.skeleton"
+    assert found["silhouette"].data.name == "Cylinder.silhouette"
+    _check_parity(ob, found, mesh_arrays, SkeletonParams(spacing=0.08))
+    assert len(bpy.data.collections) == 1
+    # a second mesh gets its own result beside the first
+    other = make_mesh("Other", *capsule(length=2.0))
+    _generate(other)
+    assert {o.name for o in bpy.data.collections["CurveSkel"].objects} == {
+        "Cylinder.skeleton", "Cylinder.silhouette", "Other.skeleton", "Other.silhouette"}
+
+
+def test_one_undo_restores_the_scene(make_mesh, scene_snapshot):
+    """One undo step removes everything the operator made (the armature's edit-mode round trip
+    included). Background mode has no undo stack until ed.undo_push() creates one, and
+    bpy.ops pushes the operator's own step only when called with undo=True (what the UI does)."""
+    ob = make_mesh("Cylinder", *capsule())
+    bpy.ops.ed.undo_push(message="before CurveSkel")
+    before = scene_snapshot()
+    assert bpy.ops.curveskel.generate('EXEC_DEFAULT', True) == {'FINISHED'}
+    assert scene_snapshot() != before
+    assert bpy.ops.ed.undo() == {'FINISHED'}
+    assert scene_snapshot() == before
+    assert bpy.ops.ed.redo() == {'FINISHED'}
+    assert "Cylinder.skeleton" in bpy.data.objects and "Cylinder.silhouette" in bpy.data.objects
+
+
+def test_source_mesh_unchanged(make_mesh, mesh_digest):
+    ob = make_mesh("Cylinder", *capsule())
+    ob.modifiers.new("Subsurf", 'SUBSURF').levels = 1
+    before = mesh_digest(ob)
+    _generate(ob)
+    after = mesh_digest(ob)
+    assert after["sha256"] == before["sha256"]
+    for k in before:
+        if isinstance(before[k], np.ndarray):
+            np.testing.assert_array_equal(after[k], before[k])
+        else:
+            assert after[k] == before[k], k
+
+
+def test_silhouette_display_and_toggles(make_mesh):
+    ob = make_mesh("Cylinder", *capsule())
+    sil = _generate(ob)["silhouette"]
+    assert sil.display_type == 'WIRE' and sil.hide_render
+    assert [m.type for m in sil.modifiers][0] == 'SKIN'
+    sil = _generate(ob, silhouette_in_render=True, make_armature=False)["silhouette"]
+    assert not sil.hide_render
+    assert results.find_result("Cylinder")["armature"] is None
+    assert "curveskel_n_bones" in sil          # figures also on the silhouette
+    found = _generate(ob, make_silhouette=False)
+    assert found["silhouette"] is None and found["armature"] is not None
+
+
+def test_bind_option_binds_the_mesh(make_mesh):
+    ob = make_mesh("Cylinder", *capsule())
+    arm = _generate(ob, bind=True)["armature"]
+    mods = [m for m in ob.modifiers if m.type == 'ARMATURE']
+    assert len(mods) == 1 and mods[0].object == arm
+    assert len(ob.vertex_groups) >= 1
+    arm = _generate(ob, bind=True)["armature"]      # re-run: still one modifier, on the new armature
+    mods = [m for m in ob.modifiers if m.type == 'ARMATURE']
+    assert len(mods) == 1 and mods[0].object == arm
+
+
+def test_interactive_flag_runs_plain_execute_headless(make_mesh):
+    ob = make_mesh("Cylinder", *capsule())
+    assert bpy.ops.curveskel.generate('INVOKE_DEFAULT', interactive=True) == {'FINISHED'}
+    assert results.find_result("Cylinder")["armature"] is not None
+
+
+def test_success_is_reported(make_mesh, capsys):
+    ob = make_mesh("Cylinder", *capsule())
+    _generate(ob)
+    out = capsys.readouterr().out
+    assert "CurveSkel 'Cylinder':" in out and "joints" in out and "E0" in out
+
+
+# -- bad input: an ERROR report (RuntimeError in background mode), CANCELLED, nothing changed ----
+def _no_active(make_mesh):
+    make_mesh("Cylinder", *capsule())
+    bpy.context.view_layer.objects.active = None
+
+
+def _not_a_mesh(make_mesh):
+    make_mesh("Cylinder", *capsule())
+    bpy.ops.object.empty_add()
+
+
+def _edit_mode(make_mesh):
+    make_mesh("Cylinder", *capsule())
+    bpy.ops.object.mode_set(mode='EDIT')
+
+
+def _empty_mesh(make_mesh):
+    make_mesh("Empty", np.zeros((0, 3)), np.zeros((0, 3), int))
+
+
+def _no_faces(make_mesh):
+    me = bpy.data.meshes.new("Edges")
+    me.from_pydata([(0, 0, 0), (1, 0, 0), (1, 1, 0)], [(0, 1), (1, 2)], [])
+    ob = bpy.data.objects.new("Edges", me)
+    bpy.context.scene.collection.objects.link(ob)
+    bpy.context.view_layer.objects.active = ob
+
+
+def _nan(make_mesh):
+    V, F = capsule()
+    V[5] = np.nan
+    make_mesh("Broken", V, F)
+
+
+def _zero_area(make_mesh):     # a core error: every face degenerate
+    make_mesh("Flat", [[0, 0, 0], [1, 0, 0], [2, 0, 0]], [[0, 1, 2]])
+
+
+def _nothing_to_create(make_mesh):
+    make_mesh("Cylinder", *capsule())
+    return {"make_armature": False, "make_silhouette": False}
+
+
+BAD = [
+    (_no_active, "No active object"),
+    (_not_a_mesh, "not a mesh"),
+    (_edit_mode, "Object Mode"),
+    (_empty_mesh, "no vertices"),
+    (_no_faces, "no faces"),
+    (_nan, "NaN"),
+    (_zero_area, "zero area"),
+    (_nothing_to_create, "Nothing to create"),
+]
+
+
+@pytest.mark.parametrize("setup, message", BAD, ids=[f.__name__.strip("_") for f, _ in BAD])
+def test_bad_input_reports_and_changes_nothing(setup, message, make_mesh, scene_snapshot):
+    props = setup(make_mesh) or {}
+    before = scene_snapshot()
+    with pytest.raises(RuntimeError, match=message):
+        bpy.ops.curveskel.generate(**props)
+    assert scene_snapshot() == before
+    assert "CurveSkel" not in bpy.data.collections

@@ -1,0 +1,136 @@
+"""Registration, the sidebar panel's settings and buttons, preferences, and import hygiene."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import bpy
+import pytest
+
+import curveskel_addon
+from curveskel_addon import panel, registration, results
+from curveskel_addon.core import SkeletonParams
+from curveskel_addon.properties import ADVANCED_NAMES, OPTION_NAMES, PARAM_NAMES, settings_dict, skeleton_params
+from meshes import capsule
+
+ROOT = Path(__file__).resolve().parents[2]
+CLASS_NAMES = [cls.__name__ for cls in registration.CLASSES]
+
+
+def _registered() -> bool:
+    return all(cls.is_registered for cls in registration.CLASSES)
+
+
+def test_register_unregister_twice():
+    assert _registered() and hasattr(bpy.types.Scene, "curveskel")
+    for _ in range(2):
+        curveskel_addon.unregister()
+        assert not any(cls.is_registered for cls in registration.CLASSES)
+        assert not hasattr(bpy.types.Scene, "curveskel")
+        assert not hasattr(bpy.types, "CURVESKEL_OT_generate")
+        assert panel._menu_entry not in bpy.types.VIEW3D_MT_object._dyn_ui_initialize()
+        curveskel_addon.register()
+        assert _registered() and hasattr(bpy.types.Scene, "curveskel")
+    # the Object menu has our entry exactly once
+    draw_funcs = getattr(bpy.types.VIEW3D_MT_object, "_dyn_ui_initialize")()
+    assert sum(f is panel._menu_entry for f in draw_funcs) == 1
+
+
+def test_class_names_and_panel_location():
+    assert bpy.types.CURVESKEL_OT_generate.bl_idname == "curveskel.generate"
+    assert {'REGISTER', 'UNDO'} <= set(bpy.types.CURVESKEL_OT_generate.bl_options)
+    pt = bpy.types.CURVESKEL_PT_main
+    assert (pt.bl_space_type, pt.bl_region_type, pt.bl_category) == ('VIEW_3D', 'UI', "CurveSkel")
+    assert all(n.startswith(("CURVESKEL_OT_", "CURVESKEL_PT_", "CURVESKEL_AddonPreferences",
+                             "CurveSkelSceneSettings")) for n in CLASS_NAMES)
+
+
+def test_poll_message_says_why():
+    bpy.context.view_layer.objects.active = None
+    assert not bpy.ops.curveskel.generate.poll()
+    with pytest.raises(RuntimeError, match="No active object"):
+        bpy.ops.curveskel.generate()
+
+
+def test_settings_defaults_match_the_core():
+    d = SkeletonParams()
+    s = bpy.context.scene.curveskel
+    assert skeleton_params(s) == d      # float32 storage read back as the decimals typed
+    assert set(settings_dict(s)) == set(PARAM_NAMES + ADVANCED_NAMES + OPTION_NAMES)
+    assert set(PARAM_NAMES + ADVANCED_NAMES) == set(d.to_dict())     # all of the core's parameters
+    op_props = bpy.ops.curveskel.generate.get_rna_type().properties
+    for name in PARAM_NAMES + ADVANCED_NAMES + OPTION_NAMES:
+        assert name in op_props and name in s.bl_rna.properties
+    from curveskel_addon.preferences import CURVESKEL_AddonPreferences
+    assert CURVESKEL_AddonPreferences.bl_idname == "curveskel_addon"
+
+
+def test_panel_settings_reach_the_operator(make_mesh):
+    """What the Generate button does: copy the scene settings into the operator's properties."""
+    ob = make_mesh("Cylinder", *capsule())
+    s = bpy.context.scene.curveskel
+    s.spacing, s.max_iterations, s.make_silhouette = 0.08, 5, False
+    assert bpy.ops.curveskel.generate(**settings_dict(s)) == {'FINISHED'}
+    found = results.find_result(ob.name)
+    assert found["silhouette"] is None
+    arm = found["armature"]
+    assert arm["curveskel_iterations"] <= 5
+    assert '"spacing": 0.08' in arm["curveskel_params"]
+
+
+def test_reset_settings_without_preferences_restores_defaults():
+    s = bpy.context.scene.curveskel
+    s.spacing, s.seed = 0.2, 7
+    assert bpy.ops.curveskel.reset_settings() == {'FINISHED'}
+    assert skeleton_params(s) == SkeletonParams()
+
+
+def test_result_buttons(make_mesh):
+    ob = make_mesh("Cylinder", *capsule())
+    assert not bpy.ops.curveskel.select_armature.poll()
+    bpy.ops.curveskel.generate()
+    sil = results.find_result("Cylinder")["silhouette"]
+    assert bpy.ops.curveskel.toggle_silhouette() == {'FINISHED'} and sil.hide_get()
+    assert bpy.ops.curveskel.toggle_silhouette() == {'FINISHED'} and not sil.hide_get()
+    assert bpy.ops.curveskel.select_armature() == {'FINISHED'}
+    arm = bpy.context.view_layer.objects.active
+    assert arm.name == "Cylinder.skeleton" and arm.select_get() and not ob.select_get()
+    # the panel finds the result from the armature too, and shows its figures
+    assert results.source_of(arm) == "Cylinder"
+    figs = results.figures(arm)
+    assert set(figs) == set(results.FIGURE_KEYS)
+    with pytest.raises(RuntimeError, match="is armature, not a mesh"):
+        bpy.ops.curveskel.generate()
+
+
+def test_figures_read_the_same_after_save_and_reload(make_mesh, tmp_path):
+    """Custom properties survive a .blend round trip (plain ID properties, read with .get)."""
+    ob = make_mesh("Cylinder", *capsule())
+    bpy.ops.curveskel.generate()
+    figs = results.figures(results.find_result("Cylinder")["armature"])
+    path = tmp_path / "r.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    again = results.figures(results.find_result("Cylinder")["armature"])
+    assert again == pytest.approx(figs)
+
+
+def test_core_imports_neither_bpy_nor_trimesh():
+    code = ("import sys; import curveskel_addon.core as c; from curveskel_addon.core import graph_root; "
+            "bad = [m for m in ('bpy', 'trimesh') if m in sys.modules]; print(bad); sys.exit(bool(bad))")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
+    assert out.returncode == 0, out.stdout + out.stderr
+
+
+def test_relative_imports_only():
+    """Installed extensions are imported as bl_ext.<repo>.curveskel: no absolute self-imports."""
+    import ast
+
+    offenders = []
+    for p in (ROOT / "curveskel_addon").rglob("*.py"):
+        for node in ast.walk(ast.parse(p.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) and node.level == 0 else [])
+            offenders += [f"{p.relative_to(ROOT)}:{node.lineno}" for n in names
+                          if n.split(".")[0] == "curveskel_addon"]
+    assert offenders == []
