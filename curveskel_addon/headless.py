@@ -113,12 +113,13 @@ def save_blend(path) -> Path:
 
 
 # -- preview render ------------------------------------------------------------------------------
-def render_preview(path, ob, *, resolution=(640, 480), samples: int = 16) -> Path:
+def render_preview(path, ob, *, resolution=(640, 480), samples: int = 8) -> Path:
     """A Cycles CPU picture of ``ob`` (semi-transparent) with its silhouette and skeleton.
 
-    The skeleton (armatures do not render) is drawn by a temporary copy of the silhouette's
-    edges as thin tubes with a ball at every joint. Camera, light and materials are added to the
-    scene; the temporary objects are removed afterwards.
+    Armatures do not render: temporary copies of the silhouette's joints and bones draw the
+    silhouette (balls of the joint radii joined by cones) and the skeleton (thin tubes, a red
+    ball per joint). ``ob`` gets a transparent material and the scene a camera framing it, two
+    sun lights and a light world; the temporary objects are removed afterwards.
     """
     path = Path(path).resolve()
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -129,24 +130,37 @@ def render_preview(path, ob, *, resolution=(640, 480), samples: int = 16) -> Pat
     coll = bpy.data.collections.new(PREVIEW_COLLECTION)
     scene.collection.children.link(coll)
     try:
-        _assign(ob, _material("CurveSkel Preview Mesh", (0.78, 0.84, 0.92), alpha=0.2,
-                              roughness=0.35))
+        _assign(ob, _xray_material("CurveSkel Preview Mesh", (0.32, 0.42, 0.58), edge=0.9))
         size = max(ob.dimensions) or 1.0
         hidden_render = None
         if sil is not None:
+            # The Skin modifier's hull breaks into flat shards where bones are short next to the
+            # radii; the picture draws the same balls and cones with geometry nodes instead.
             hidden_render = sil.hide_render
-            sil.hide_render = False
-            _assign(sil, _material("CurveSkel Preview Silhouette", (1.0, 0.42, 0.08), alpha=0.38,
-                                   roughness=0.5))
-            made += _skeleton_lines(sil, coll, size)
-        cam = _camera(coll, ob)
-        made.append(cam)
+            sil.hide_render = True
+            scale = max(sil.matrix_world.to_scale()) or 1.0
+            r = _skin_radii(sil)
+            orange = _xray_material("CurveSkel Preview Silhouette", (1.0, 0.45, 0.1), edge=0.75)
+            made.append(_sweep_object("CurveSkel Preview Silhouette", sil, coll, r, r, orange, orange,
+                                      union=True))
+            made.append(_sweep_object(
+                "CurveSkel Preview Skeleton", sil, coll, 0.005 * size / scale, 0.013 * size / scale,
+                _material("CurveSkel Preview Bones", (0.02, 0.08, 0.45), roughness=0.3, emission=0.5),
+                _material("CurveSkel Preview Joints", (0.85, 0.05, 0.1), roughness=0.3, emission=0.3)))
+        for o in (ob, made[0] if made else None):
+            if o is not None:      # transparent layers: seen by the camera only (much faster)
+                o.visible_shadow = o.visible_diffuse = o.visible_glossy = False
+                o.visible_transmission = False
+        _setup_render(scene, path, resolution, samples)     # before framing: the aspect ratio
+        made.append(_camera(coll, ob, sil))
         made += _lights(coll)
-        _setup_render(scene, path, resolution, samples)
         bpy.ops.render.render(write_still=True)
     finally:
         if sil is not None and hidden_render is not None:
             sil.hide_render = hidden_render
+        for o in made:
+            if o.type == 'MESH' and o.modifiers and o.modifiers[0].type == 'NODES':
+                bpy.data.node_groups.remove(o.modifiers[0].node_group)
         results.remove_objects(made)
         bpy.data.collections.remove(coll)
     return path
@@ -177,59 +191,169 @@ def _material(name, color, *, alpha=1.0, roughness=0.5, emission=0.0):
     return mat
 
 
+def _xray_material(name, color, *, edge: float = 1.0, blend: float = 0.35):
+    """See-through, self-lit surface: transparent where it faces the camera, ``color`` towards its
+    outline (Layer Weight "Facing"). No light sampling, so a few samples render it without noise."""
+    mat = bpy.data.materials.new(name)
+    if hasattr(mat, "use_nodes") and not mat.use_nodes:
+        mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    for n in list(nodes):
+        if n.type != 'OUTPUT_MATERIAL':
+            nodes.remove(n)
+    out = next(n for n in nodes if n.type == 'OUTPUT_MATERIAL')
+    weight = nodes.new('ShaderNodeLayerWeight')
+    weight.inputs["Blend"].default_value = blend
+    scale = nodes.new('ShaderNodeMath')
+    scale.operation = 'MULTIPLY'
+    scale.inputs[1].default_value = edge
+    links.new(weight.outputs["Facing"], scale.inputs[0])
+    clear = nodes.new('ShaderNodeBsdfTransparent')
+    glow = nodes.new('ShaderNodeEmission')
+    glow.inputs["Color"].default_value = (*color, 1.0)
+    glow.inputs["Strength"].default_value = 1.0
+    mix = nodes.new('ShaderNodeMixShader')
+    links.new(scale.outputs[0], mix.inputs["Fac"])
+    links.new(clear.outputs[0], mix.inputs[1])
+    links.new(glow.outputs[0], mix.inputs[2])
+    links.new(mix.outputs[0], out.inputs["Surface"])
+    mat.diffuse_color = (*color, 0.5)
+    return mat
+
+
 def _assign(ob, mat) -> None:
     ob.data.materials.clear()
     ob.data.materials.append(mat)
 
 
-def _skeleton_lines(sil, coll, size) -> list:
-    """Bones as thin tubes (Skin of constant radius) and joints as balls (vertex instancing)."""
-    me = bpy.data.meshes.new("CurveSkel Preview Bones")
-    n = len(sil.data.vertices)
+def _sweep_tree(name, tube_material, ball_material, union=False):
+    """Geometry nodes: every edge becomes a cone of radius attribute "radius" at its ends, every
+    vertex a ball of radius "ball" (a sphere-swept skeleton, drawn without Python maths)."""
+    tree = bpy.data.node_groups.new(name, 'GeometryNodeTree')
+    tree.interface.new_socket("Geometry", in_out='INPUT', socket_type='NodeSocketGeometry')
+    tree.interface.new_socket("Geometry", in_out='OUTPUT', socket_type='NodeSocketGeometry')
+    N, L = tree.nodes, tree.links
+    gin, gout = N.new('NodeGroupInput'), N.new('NodeGroupOutput')
+
+    def attr(attr_name):
+        node = N.new('GeometryNodeInputNamedAttribute')
+        node.data_type = 'FLOAT'
+        node.inputs["Name"].default_value = attr_name
+        return node.outputs["Attribute"]
+
+    to_curve = N.new('GeometryNodeMeshToCurve')
+    L.new(gin.outputs[0], to_curve.inputs["Mesh"])
+    circle = N.new('GeometryNodeCurvePrimitiveCircle')
+    circle.inputs["Resolution"].default_value = 24
+    circle.inputs["Radius"].default_value = 1.0
+    sweep = N.new('GeometryNodeCurveToMesh')
+    sweep.inputs["Fill Caps"].default_value = True
+    L.new(circle.outputs["Curve"], sweep.inputs["Profile Curve"])
+    if "Scale" in sweep.inputs:                      # Blender 4.4+: explicit profile scale
+        L.new(to_curve.outputs["Curve"], sweep.inputs["Curve"])
+        L.new(attr("radius"), sweep.inputs["Scale"])
+    else:                                            # 4.2: the curve radius scales the profile
+        set_r = N.new('GeometryNodeSetCurveRadius')
+        L.new(to_curve.outputs["Curve"], set_r.inputs["Curve"])
+        L.new(attr("radius"), set_r.inputs["Radius"])
+        L.new(set_r.outputs["Curve"], sweep.inputs["Curve"])
+    points = N.new('GeometryNodeMeshToPoints')
+    L.new(gin.outputs[0], points.inputs["Mesh"])
+    sphere = N.new('GeometryNodeMeshUVSphere')
+    sphere.inputs["Segments"].default_value = 24
+    sphere.inputs["Rings"].default_value = 12
+    sphere.inputs["Radius"].default_value = 1.0
+    inst = N.new('GeometryNodeInstanceOnPoints')
+    L.new(points.outputs["Points"], inst.inputs["Points"])
+    L.new(sphere.outputs["Mesh"], inst.inputs["Instance"])
+    L.new(attr("ball"), inst.inputs["Scale"])
+    real = N.new('GeometryNodeRealizeInstances')
+    L.new(inst.outputs["Instances"], real.inputs["Geometry"])
+    join = N.new('GeometryNodeJoinGeometry')
+    if union:
+        # One outer surface (a voxel remesh of balls and cones): two transparent layers per
+        # pixel instead of one per overlapping piece - cleaner and several times faster.
+        for sock in (real.outputs["Geometry"], sweep.outputs["Mesh"]):
+            L.new(sock, join.inputs[0])
+        to_vol = N.new('GeometryNodeMeshToVolume')
+        if "Resolution Mode" in to_vol.inputs:          # 5.0: a menu socket; 4.2: a property
+            to_vol.inputs["Resolution Mode"].default_value = 'Amount'
+        else:
+            to_vol.resolution_mode = 'VOXEL_AMOUNT'
+        to_vol.inputs["Voxel Amount"].default_value = 128
+        L.new(join.outputs[0], to_vol.inputs["Mesh"])
+        to_mesh = N.new('GeometryNodeVolumeToMesh')
+        L.new(to_vol.outputs[0], to_mesh.inputs["Volume"])
+        set_mat = N.new('GeometryNodeSetMaterial')
+        set_mat.inputs["Material"].default_value = tube_material
+        L.new(to_mesh.outputs[0], set_mat.inputs[0])
+        last = set_mat.outputs[0]
+    else:
+        for sock, mat in ((real.outputs["Geometry"], ball_material), (sweep.outputs["Mesh"], tube_material)):
+            set_mat = N.new('GeometryNodeSetMaterial')
+            set_mat.inputs["Material"].default_value = mat
+            L.new(sock, set_mat.inputs[0])
+            L.new(set_mat.outputs[0], join.inputs[0])
+        last = join.outputs[0]
+    smooth = N.new('GeometryNodeSetShadeSmooth')
+    L.new(last, smooth.inputs[0])
+    L.new(smooth.outputs[0], gout.inputs[0])
+    return tree
+
+
+def _sweep_object(name, sil, coll, radius, ball, tube_material, ball_material, union=False):
+    """A render-only copy of the silhouette's joints and bones, drawn by ``_sweep_tree``."""
+    src = sil.data
+    n = len(src.vertices)
     co = np.empty(n * 3, np.float32)
-    sil.data.vertices.foreach_get("co", co)
-    ed = np.empty(len(sil.data.edges) * 2, np.int32)
-    sil.data.edges.foreach_get("vertices", ed)
+    src.vertices.foreach_get("co", co)
+    ed = np.empty(len(src.edges) * 2, np.int32)
+    src.edges.foreach_get("vertices", ed)
+    me = bpy.data.meshes.new(name)
     me.vertices.add(n)
     me.vertices.foreach_set("co", co)
     me.edges.add(len(ed) // 2)
     me.edges.foreach_set("vertices", ed)
     me.update()
-    bones = bpy.data.objects.new("CurveSkel Preview Bones", me)
-    coll.objects.link(bones)
-    bones.matrix_world = sil.matrix_world
-    bones.modifiers.new("Skin", 'SKIN').use_smooth_shade = True
-    scale = max(sil.matrix_world.to_scale()) or 1.0
-    me.skin_vertices[0].data.foreach_set("radius", np.full(2 * n, 0.006 * size / scale, np.float32))
-    _assign(bones, _material("CurveSkel Preview Bones", (0.02, 0.08, 0.45), roughness=0.3, emission=0.6))
-    bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8, radius=0.016 * size / scale)
-    ball = bpy.context.active_object
-    for c in list(ball.users_collection):
-        c.objects.unlink(ball)
-    coll.objects.link(ball)
-    ball.name = "CurveSkel Preview Joint"
-    ball.data.polygons.foreach_set("use_smooth", np.ones(len(ball.data.polygons), bool))
-    _assign(ball, _material("CurveSkel Preview Joints", (0.85, 0.05, 0.1), roughness=0.3))
-    ball.parent = bones
-    ball.matrix_parent_inverse.identity()
-    ball.location = (0.0, 0.0, 0.0)
-    bones.instance_type = 'VERTS'
-    bones.show_instancer_for_render = True
-    return [ball, bones]
+    for attr_name, values in (("radius", radius), ("ball", ball)):
+        me.attributes.new(attr_name, 'FLOAT', 'POINT').data.foreach_set(
+            "value", np.broadcast_to(np.asarray(values, np.float32), (n,)).copy())
+    ob = bpy.data.objects.new(name, me)
+    coll.objects.link(ob)
+    ob.matrix_world = sil.matrix_world
+    mod = ob.modifiers.new("Sweep", 'NODES')
+    mod.node_group = _sweep_tree(name, tube_material, ball_material, union)
+    return ob
 
 
-def _camera(coll, ob):
+def _skin_radii(sil) -> np.ndarray:
+    sv = sil.data.skin_vertices[0].data
+    r = np.empty(len(sv) * 2, np.float32)
+    sv.foreach_get("radius", r)
+    return r[0::2]
+
+
+def _world_vertices(ob) -> np.ndarray:
+    co = np.empty(len(ob.data.vertices) * 3, np.float32)
+    ob.data.vertices.foreach_get("co", co)
+    M = np.array(ob.matrix_world)
+    return co.reshape(-1, 3) @ M[:3, :3].T + M[:3, 3]
+
+
+def _camera(coll, ob, extra=None):
+    """A camera framing ``ob``'s vertices (and ``extra``'s: the skeleton's joints)."""
     from math import radians
 
     cam = bpy.data.objects.new("CurveSkel Preview Camera", bpy.data.cameras.new("CurveSkel Preview Camera"))
     coll.objects.link(cam)
-    cam.rotation_euler = (radians(72.0), 0.0, radians(32.0))   # front-right, slightly from above
+    world = _world_vertices(ob)
+    if extra is not None:
+        world = np.concatenate([world, _world_vertices(extra)])
+    # Three-quarter view, slightly from above, with the longer horizontal side of the mesh across.
+    ext = np.ptp(world, axis=0)
+    cam.rotation_euler = (radians(72.0), 0.0, radians(125.0 if ext[1] > ext[0] else 35.0))
     cam.data.lens = 50.0
     bpy.context.view_layer.update()
-    co = np.empty(len(ob.data.vertices) * 3, np.float32)
-    ob.data.vertices.foreach_get("co", co)
-    M = np.array(ob.matrix_world)
-    world = co.reshape(-1, 3) @ M[:3, :3].T + M[:3, 3]
     loc, _scale = cam.camera_fit_coords(bpy.context.evaluated_depsgraph_get(), world.ravel().tolist())
     cam.location = loc
     cam.data.lens = 50.0 * 0.9             # a margin around the framed object
@@ -264,11 +388,9 @@ def _setup_render(scene, path, resolution, samples) -> None:
     scene.cycles.device = 'CPU'
     scene.cycles.samples = samples
     scene.cycles.use_adaptive_sampling = True
-    scene.cycles.max_bounces = 3
-    scene.cycles.diffuse_bounces = 1
-    scene.cycles.glossy_bounces = 1
-    scene.cycles.transmission_bounces = 0
+    scene.cycles.max_bounces = 0             # direct light only: a preview, not a beauty shot
     scene.cycles.transparent_max_bounces = 16
+    scene.cycles.min_transparent_bounces = 16    # no random path termination: no grain
     # OpenImageDenoise takes longer than the render itself on a small CPU: off.
     scene.cycles.use_denoising = False
     scene.render.resolution_x, scene.render.resolution_y = resolution

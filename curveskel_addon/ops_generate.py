@@ -20,7 +20,7 @@ from .properties import (ADVANCED_NAMES, OPTION_NAMES, PARAM_NAMES, GenerateSett
                          skeleton_params)
 from .silhouette import build_silhouette, update_silhouette
 
-__all__ = ["CURVESKEL_OT_generate", "input_problem", "build_result", "CLASSES"]
+__all__ = ["CURVESKEL_OT_generate", "LiveRun", "input_problem", "build_result", "CLASSES"]
 
 # Share of the progress bar (0..100) each core stage fills.
 _PROGRESS_SPAN = {"first_approximation": (0.0, 40.0), "optimise": (40.0, 100.0)}
@@ -113,6 +113,53 @@ def _make_active(context, ob) -> None:
     context.view_layer.objects.active = ob
 
 
+class LiveRun:
+    """A run the user watches: the solver advances a few iterations at a time and the silhouette
+    follows (the paper's Figure 4). The operator's modal mode drives it from a timer; nothing here
+    needs a window, so it also runs headless.
+
+    Creating it runs the first approximation and creates the live silhouette (tagged as the
+    result of ``src``); :meth:`stop` returns the skeleton so far, :meth:`discard` removes the
+    silhouette again.
+    """
+
+    def __init__(self, context, src, params, *, in_render: bool = False, progress=None):
+        V, F = evaluated_triangles(src, context.evaluated_depsgraph_get())
+        self.run = SkeletonRun(V, F, params, progress)        # may raise CurveSkelError
+        self.source_name = src.name
+        first = self.run.current_skeleton()
+        _, sil_name = results.result_names(src.name)
+        self.silhouette = build_silhouette(first, sil_name, results.collection(context),
+                                           src.matrix_world.copy(), roots=results.root_joints(first),
+                                           in_render=in_render)
+        results.tag(self.silhouette, src.name, "silhouette")
+        self._steps = self.run.steps()
+        self.state = None
+
+    def advance(self, iterations: int) -> bool:
+        """Run up to ``iterations`` solver iterations, then redraw the silhouette.
+        Returns True once the solver has finished."""
+        for _ in range(max(int(iterations), 1)):
+            state = next(self._steps, None)
+            if state is None:
+                return True
+            self.state = state
+            if state.done:
+                return True
+        update_silhouette(self.silhouette, self.run.current_skeleton())
+        return False
+
+    def stop(self):
+        """End the run; the skeleton as it stands (the solvers only ever lower E, so the latest
+        iterate is the best one so far)."""
+        self._steps.close()
+        return self.run.current_skeleton()
+
+    def discard(self) -> None:
+        self._steps.close()
+        results.remove_objects([self.silhouette])
+
+
 class CURVESKEL_OT_generate(GenerateSettings, bpy.types.Operator):
     """Fit a curve-skeleton to the active mesh: an armature and a Skin-modifier silhouette in the
     "CurveSkel" collection (the mesh itself is not changed)"""
@@ -187,25 +234,15 @@ class CURVESKEL_OT_generate(GenerateSettings, bpy.types.Operator):
         self._t0 = time.perf_counter()
         wm = context.window_manager
         try:
-            V, F = evaluated_triangles(src, context.evaluated_depsgraph_get())
-            self._run = SkeletonRun(V, F, skeleton_params(self), _progress(wm))
-            first = self._run.current_skeleton()
-            self._roots = results.root_joints(first)
-            _, sil_name = results.result_names(src.name)
-            self._live = build_silhouette(first, sil_name, results.collection(context),
-                                          src.matrix_world.copy(), roots=self._roots,
-                                          in_render=self.silhouette_in_render)
-            results.tag(self._live, src.name, "silhouette")
+            self._live = LiveRun(context, src, skeleton_params(self),
+                                 in_render=self.silhouette_in_render, progress=_progress(wm))
         except CurveSkelError as exc:
             self.report({'ERROR'}, f"CurveSkel '{src.name}': {exc}")
             return {'CANCELLED'}
-        self._src_name = src.name
-        self._steps = self._run.steps()
-        self._state = None
         wm.progress_begin(0, 100)
         self._timer = wm.event_timer_add(0.02, window=context.window)
         wm.modal_handler_add(self)
-        self._status(context, "first approximation")
+        self._status(context, "first approximation (Esc to stop)")
         return {'RUNNING_MODAL'}
 
     def modal(self, context, event):
@@ -214,34 +251,32 @@ class CURVESKEL_OT_generate(GenerateSettings, bpy.types.Operator):
         if event.type != 'TIMER':
             return {'PASS_THROUGH'}       # the view can still be orbited and zoomed
         try:
-            for _ in range(self.update_every):
-                self._state = next(self._steps, None)
-                if self._state is None or self._state.done:
-                    return self._modal_end(context, stopped=False)
-            update_silhouette(self._live, self._run.current_skeleton())
+            if self._live.advance(self.update_every):
+                return self._modal_end(context, stopped=False)
         except CurveSkelError as exc:
             self._modal_cleanup(context)
-            results.remove_objects([self._live])
-            self.report({'ERROR'}, f"CurveSkel '{self._src_name}': {exc}")
+            self._live.discard()
+            self.report({'ERROR'}, f"CurveSkel '{self._live.source_name}': {exc}")
             return {'CANCELLED'}
-        st = self._state
-        self._status(context, f"iteration {st.iteration}, E = {st.energy:.4g} (Esc to stop)")
+        st = self._live.state
+        if st is not None:
+            self._status(context, f"iteration {st.iteration}, E = {st.energy:.4g} (Esc to stop)")
         return {'RUNNING_MODAL'}
 
     def _modal_end(self, context, *, stopped: bool):
-        self._steps.close()
         self._modal_cleanup(context)
-        src = bpy.data.objects.get(self._src_name)
-        skeleton = self._run.current_skeleton()    # the solvers only ever lower E: the best so far
-        if src is None:
-            results.remove_objects([self._live])
-            self.report({'ERROR'}, f"CurveSkel: the source object '{self._src_name}' is gone")
-            return {'CANCELLED'}
         live = self._live
+        skeleton = live.stop()
+        src = bpy.data.objects.get(live.source_name)
+        if src is None:
+            live.discard()
+            self.report({'ERROR'}, f"CurveSkel: the source object '{live.source_name}' is gone")
+            return {'CANCELLED'}
+        sil = live.silhouette
         if not self.make_silhouette:
-            results.remove_objects([live])
-            live = None
-        return self._finish(context, src, skeleton, self._t0, live=live, stopped=stopped)
+            results.remove_objects([sil])
+            sil = None
+        return self._finish(context, src, skeleton, self._t0, live=sil, stopped=stopped)
 
     def _modal_cleanup(self, context) -> None:
         wm = context.window_manager

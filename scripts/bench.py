@@ -51,7 +51,8 @@ CGAL = {
     "octopus": (0.0688, 0.35, 118), "rocker-arm": (0.0343, 0.89, 216), "3holes": (0.0240, 1.00, 258),
     "fertility": (0.0174, 0.99, 390),
 }
-METHODS = ["curveskel", "curveskel-paper", "skeletor-wavefront", "skeletor-clusters", "pygel-msls"]
+METHODS = ["curveskel", "curveskel-paper", "curveskel-initial", "skeletor-wavefront",
+           "skeletor-clusters", "pygel-msls"]
 PEER_PACKAGES = {"skeletor-wavefront": "skeletor", "skeletor-clusters": "skeletor",
                  "pygel-msls": "pygel3d"}
 TARGETS = {"inside": 0.98, "joints": 300, "recon_ratio_mean": 0.7}
@@ -168,7 +169,8 @@ def run_method(method: str, V, F):
     if method.startswith("curveskel"):
         from curveskel_addon.core import SkeletonParams, skeletonize
 
-        params = SkeletonParams() if method == "curveskel" else SkeletonParams.paper()
+        params = {"curveskel": SkeletonParams(), "curveskel-paper": SkeletonParams.paper(),
+                  "curveskel-initial": SkeletonParams(max_iterations=0)}[method]
         t0 = time.perf_counter()
         sk = skeletonize(V, F, params)
         return sk.joints, sk.bones, sk, time.perf_counter() - t0, {"iterations": sk.iterations}
@@ -381,6 +383,9 @@ end to end < 1 s; 1M < 10 s and < 2 GB.
 """
     print("\n" + table)
     if not args.no_write:
+        fig = plot_speed(results)
+        if fig:
+            body += f"\n![seconds per stage]({Path(fig).relative_to('docs')})\n"
         write_section("speed", body)
         print(f"\nwrote {DOC.relative_to(ROOT)} (speed) and .bench/speed.json")
 
@@ -420,6 +425,9 @@ def run_quality(args) -> None:
     body = quality_markdown(results, specs, runnable, notes, args)
     print("\n" + body)
     if not args.no_write:
+        fig = plot_quality(results, specs, runnable)
+        if fig:
+            body += f"\n![recon and inside per mesh and method]({Path(fig).relative_to('docs')})\n"
         write_section("quality", body)
         print(f"\nwrote {DOC.relative_to(ROOT)} (quality) and .bench/quality.json")
 
@@ -512,6 +520,8 @@ mesh components / genus (✗ = mismatch). *seconds*: the method alone, from arra
 subprocess per run.
 
 Methods: `curveskel` = `SkeletonParams()`; `curveskel-paper` = `SkeletonParams.paper()`;
+`curveskel-initial` = `SkeletonParams(max_iterations=0)` (the first approximation, no solver
+step: shows what the optimisation adds or loses);
 `skeletor-wavefront` = `skeletor.pre.fix_mesh` + `by_wavefront(waves=1, step_size=1)`, radii from
 skeletor (mean distance of mapped vertices where it gives 0); `skeletor-clusters` = `fix_mesh` +
 `contract()` (defaults) + `by_vertex_clusters(sampling_dist=0.02 D)`, radii = mean distance of
@@ -535,6 +545,76 @@ Average recon ratio to CGAL over these meshes: **{mean_ratio:.2f}** (target ≤ 
 
 {ttable}
 """
+
+
+# -- figures (optional: matplotlib from requirements-bench.txt) ---------------------------------
+def plot_speed(results) -> str | None:
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return None
+    ok = [r for r in results if "error" not in r]
+    if not ok:
+        return None
+    stages = [s for s in STAGE_ORDER if any(s in r["stages"] for r in ok)]
+    fig, ax = plt.subplots(figsize=(10, 4.5))
+    x = range(len(ok))
+    bottom = [0.0] * len(ok)
+    for s in stages:
+        h = [r["stages"].get(s, 0.0) for r in ok]
+        ax.bar(x, h, bottom=bottom, label=s)
+        bottom = [b + v for b, v in zip(bottom, h)]
+    ax.set_yscale("log")
+    ax.set_xticks(list(x), [f"{stem(r['mesh'])}\n{r['V']:,} V" for r in ok], rotation=45, ha="right",
+                  fontsize=8)
+    ax.set_ylabel("seconds (log)")
+    ax.set_title("skeletonize(): seconds per stage (stacked)")
+    ax.legend(fontsize=7, ncol=3)
+    fig.tight_layout()
+    path = ROOT / "docs" / "figures" / "speed_stages.png"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return str(path.relative_to(ROOT))
+
+
+def plot_quality(results, specs, methods) -> str | None:
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return None
+    by = {(r["mesh"], r["method"]): r for r in results if "error" not in r}
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+    w = 0.8 / (len(methods) + 1)
+    for k, m in enumerate(["CGAL"] + list(methods)):
+        ys, ins = [], []
+        for spec in specs:
+            if m == "CGAL":
+                cg = CGAL.get(stem(spec))
+                ys.append(cg[0] if cg else float("nan"))
+                ins.append(cg[1] if cg else float("nan"))
+            else:
+                r = by.get((spec, m))
+                ys.append(r["recon_mean"] if r else float("nan"))
+                ins.append(r["inside"] if r else float("nan"))
+        xs = [i + (k - len(methods) / 2) * w for i in range(len(specs))]
+        axes[0].bar(xs, ys, width=w, label=m)
+        axes[1].bar(xs, ins, width=w, label=m)
+    for ax, t in zip(axes, ["recon mean / D (lower is better)", "inside (higher is better)"]):
+        ax.set_xticks(range(len(specs)), [stem(s) for s in specs], rotation=45, ha="right", fontsize=8)
+        ax.set_title(t)
+    axes[1].axhline(TARGETS["inside"], color="k", lw=0.8, ls="--")
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    path = ROOT / "docs" / "figures" / "quality.png"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return str(path.relative_to(ROOT))
 
 
 def main(argv=None) -> None:

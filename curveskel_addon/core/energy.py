@@ -34,7 +34,7 @@ import numpy as np
 from .problem import FitProblem
 
 __all__ = ["residuals", "energy", "energy_and_gradient", "line_quartic", "sigma_terms", "bone_terms",
-           "bone_to_joints", "interpolate"]
+           "bone_to_joints", "interpolate", "line_residuals", "quartic_from_residuals"]
 
 
 def interpolate(pr: FitProblem, values: np.ndarray) -> np.ndarray:
@@ -228,6 +228,46 @@ def energy_and_gradient(pr: FitProblem, joints: np.ndarray | None = None) -> tup
     return E, bone_to_joints(pr.bones, Gi, Gall - Gi, len(J))
 
 
+def line_residuals(pr: FitProblem, D: np.ndarray, joints: np.ndarray | None = None,
+                   terms: tuple | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-vertex ``e_v(joints - lam D) = A + B lam + C lam^2``.
+
+    Parameters
+    ----------
+    pr : FitProblem
+    D : (J, 4) float
+        Direction.
+    joints : (J, 4) float, optional
+        Base point instead of ``pr.joints``.
+    terms : (d, rho, e), optional
+        :func:`sigma_terms` at ``joints`` if already computed (saves a pass over the vertices).
+
+    Returns
+    -------
+    A, B, C : (n,) float
+    """
+    J = pr.joints if joints is None else joints
+    d, rho, A = sigma_terms(pr, J) if terms is None else terms
+    p = interpolate(pr, np.asarray(D, dtype=np.float64))    # t D_i + (1-t) D_j, rows x, y, z, r
+    q = p[3]
+    B = d[0] * p[0] + d[1] * p[1] + d[2] * p[2] + rho * q
+    B *= 2.0
+    C = p[0] * p[0] + p[1] * p[1] + p[2] * p[2] - q * q
+    return A, B, C
+
+
+def quartic_from_residuals(w: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """c0..c4 of ``sum_v w_v (A_v + B_v lam + C_v lam^2)^2`` (see the module docstring)."""
+    wA, wB, wC = w * A, w * B, w * C
+    return np.array([
+        np.dot(wA, A),
+        2.0 * np.dot(wA, B),
+        np.dot(wB, B) + 2.0 * np.dot(wA, C),
+        2.0 * np.dot(wB, C),
+        np.dot(wC, C),
+    ])
+
+
 def line_quartic(pr: FitProblem, D: np.ndarray, joints: np.ndarray | None = None) -> np.ndarray:
     """Coefficients c0..c4 with ``E(joints - lam D) = sum_k c_k lam^k`` exactly.
 
@@ -256,20 +296,4 @@ def line_quartic(pr: FitProblem, D: np.ndarray, joints: np.ndarray | None = None
     >>> line_quartic(pr, D)                        # (3 + 2 lam - lam^2)^2
     array([ 9., 12., -2., -4.,  1.])
     """
-    J = pr.joints if joints is None else joints
-    D = np.asarray(D, dtype=np.float64)
-    d, rho, A = sigma_terms(pr, J)
-    p = interpolate(pr, D)                # t D_i + (1-t) D_j, rows x, y, z, r
-    q = p[3]
-    B = d[0] * p[0] + d[1] * p[1] + d[2] * p[2] + rho * q
-    B *= 2.0
-    C = p[0] * p[0] + p[1] * p[1] + p[2] * p[2] - q * q
-    w = pr.weights
-    wA, wB, wC = w * A, w * B, w * C
-    return np.array([
-        np.dot(wA, A),
-        2.0 * np.dot(wA, B),
-        np.dot(wB, B) + 2.0 * np.dot(wA, C),
-        2.0 * np.dot(wB, C),
-        np.dot(wC, C),
-    ])
+    return quartic_from_residuals(pr.weights, *line_residuals(pr, D, joints))

@@ -54,7 +54,8 @@ def central_joints(joints, bones) -> np.ndarray:
         if len(ids) == 1:
             roots[c] = ids[0]
             continue
-        D = dijkstra(G, directed=False, indices=ids)[:, ids]
-        roots[c] = ids[np.argmin(D.max(axis=1))]
+        ecc = dijkstra(G, directed=False, indices=ids)[:, ids].max(axis=1)
+        # Ties (within rounding, e.g. around a loop) go to the lowest joint index.
+        roots[c] = ids[np.flatnonzero(ecc <= ecc.min() * (1.0 + 1e-9))[0]]
     # connected_components numbers parts by their lowest joint, so roots are already in that order.
     return roots

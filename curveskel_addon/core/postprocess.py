@@ -27,14 +27,13 @@ import numpy as np
 
 from .problem import FitProblem
 
-__all__ = ["postprocess", "prune_branches", "simplify_chains", "leaf_branches", "branch_scores",
-           "residuals"]
+__all__ = ["postprocess", "prune_branches", "simplify_chains", "leaf_branches", "branch_scores"]
 
 Solve = Callable[[FitProblem], FitProblem]
 
 
 # -- small vectorised helpers ------------------------------------------------------------------
-def residuals(points, joints, bones, bone, t) -> np.ndarray:
+def _residuals(points, joints, bones, bone, t) -> np.ndarray:
     """(n,) ``e_v = |v - sigma_v|^2 - r_v^2`` (the term of eq. 20 before squaring)."""
     i, j = bones[bone, 0], bones[bone, 1]
     tt = t[:, None]
@@ -44,7 +43,7 @@ def residuals(points, joints, bones, bone, t) -> np.ndarray:
 
 
 def _energy(pr: FitProblem) -> float:
-    e = residuals(pr.points, pr.joints, pr.bones, pr.bone, pr.t)
+    e = _residuals(pr.points, pr.joints, pr.bones, pr.bone, pr.t)
     return float(np.dot(pr.weights, e * e))
 
 
@@ -167,7 +166,7 @@ def branch_scores(pr: FitProblem, branches=None, hops: int = 2):
         branches = leaf_branches(len(pr.joints), pr.bones)
     order = np.argsort(pr.bone, kind="stable")
     starts = np.searchsorted(pr.bone[order], np.arange(len(pr.bones) + 1))
-    e_now = residuals(pr.points, pr.joints, pr.bones, pr.bone, pr.t)
+    e_now = _residuals(pr.points, pr.joints, pr.bones, pr.bone, pr.t)
     scores, maps = np.empty(len(branches)), []
     for k, (root, _js, bs) in enumerate(branches):
         vids = np.concatenate([order[starts[b]:starts[b + 1]] for b in bs]) if bs else np.zeros(0, int)
@@ -182,7 +181,7 @@ def branch_scores(pr: FitProblem, branches=None, hops: int = 2):
             continue
         P = pr.points[vids]
         nb, nt = _closest_on_bones(P, pr.joints, pr.bones, cand)
-        e_new = residuals(P, pr.joints, pr.bones, nb, nt)
+        e_new = _residuals(P, pr.joints, pr.bones, nb, nt)
         w = pr.weights[vids]
         i, j = pr.bones[nb, 0], pr.bones[nb, 1]
         r_new = nt * pr.joints[i, 3] + (1 - nt) * pr.joints[j, 3]
@@ -319,7 +318,7 @@ def _merge_costs(pr: FitProblem, max_offset: float = np.inf):
 
     slot = np.full(J, -1)
     slot[cand] = np.arange(k)
-    e_now = residuals(pr.points, pr.joints, B, pr.bone, pr.t)
+    e_now = _residuals(pr.points, pr.joints, B, pr.bone, pr.t)
     w = pr.weights
     cost = np.zeros(k)
     new = []
@@ -337,7 +336,7 @@ def _merge_costs(pr: FitProblem, max_offset: float = np.inf):
             local = np.arange(indptr[-1]) - np.repeat(indptr[:-1], cc)
             ids = cids[np.repeat(cptr[ci], cc) + local]
             bb, tt, _ = closest_on_bones(pr.points[m], pr.joints, Bx, (indptr, ids))
-            en = residuals(pr.points[m], pr.joints, Bx, bb, tt)
+            en = _residuals(pr.points[m], pr.joints, Bx, bb, tt)
             cost += np.bincount(ci, weights=w[m] * (en * en - e_now[m] ** 2), minlength=k)
             nbone[m] = np.where(bb >= nB, -1, bb)
             nt[m] = tt
@@ -350,7 +349,8 @@ def simplify_chains(pr: FitProblem, threshold: float, *, max_offset: float = 0.2
     """Merge degree-2 joints whose removal barely changes E, cheapest first.
 
     A merge removes joint j with bones (a, j), (j, c) and puts the bone (a, c) in their place;
-    the vertices of both bones are re-mapped to it by orthogonal projection (t clamped to [0, 1]).
+    the vertices of both bones are re-mapped to the closest point (t clamped to [0, 1]) of the
+    new bone or of another bone at a or c (a local re-fit of sigma, as between solver steps).
     Its cost is the exact change of E with nothing else moving. The total cost of all merges
     is kept within a budget of ``threshold * max(E, floor^2 * S)``, where E is the input's energy
     and ``S = sum_v w_v |v - sigma_v|^4`` the energy of the same mapping with zero radii (the
@@ -360,8 +360,9 @@ def simplify_chains(pr: FitProblem, threshold: float, *, max_offset: float = 0.2
     (which only lowers E).
 
     Each round computes every candidate's cost in one vectorised pass over the vertices, then
-    accepts candidates in increasing cost while the budget lasts, skipping a candidate adjacent to
-    one accepted in the same round (their costs interact). Rounds repeat until nothing is accepted.
+    accepts candidates in increasing cost while the budget lasts, skipping a candidate within two
+    joints of one accepted in the same round (their costs interact). Rounds repeat until nothing
+    is accepted.
     Merges that would duplicate a bone (collapse a triangle cycle) or create a loop are never made,
     so the skeleton's topology (components, cycles, branch joints, leaves) is kept.
 
@@ -388,7 +389,7 @@ def simplify_chains(pr: FitProblem, threshold: float, *, max_offset: float = 0.2
     info = {"merged": 0, "rounds": 0, "energy_before": E0, "energy_after": E0, "budget": 0.0}
     if threshold <= 0:
         return pr, info
-    d2 = residuals(pr.points, pr.joints, pr.bones, pr.bone, pr.t) + _radius_at(pr) ** 2
+    d2 = _residuals(pr.points, pr.joints, pr.bones, pr.bone, pr.t) + _radius_at(pr) ** 2
     S = float(np.dot(pr.weights, d2 * d2))
     budget = threshold * max(E0, floor * floor * S)
     info["budget"] = budget

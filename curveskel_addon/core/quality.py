@@ -16,11 +16,14 @@ energy_area
     ``sum_v a_v e_v^2 / (A D^4)`` with ``a_v`` the barycentric vertex area and ``A`` the surface
     area: the surface integral of eq. 8 divided by the area (a mean over the surface, independent
     of the tessellation density).
-recon_mean, recon_p95
+energy_mapping
+    "skeleton" (the skeleton's own ``bone``/``t``), "closest" (no per-vertex mapping given: each
+    vertex to its closest bone point) or "none" (no bones).
+recon_mean, recon_p95, recon_max
     Mesh -> silhouette: over ``n_samples`` area-uniform samples ``x`` of the mesh surface, the
-    mean and 95th percentile of ``|sdf_S(x)| / D``, where ``sdf_S = min_b sdRoundCone_b`` is the
-    signed distance of the union (exact outside the silhouette, a lower bound inside).
-recon_rev_mean, recon_rev_p95
+    mean, 95th percentile and maximum of ``|sdf_S(x)| / D``, where ``sdf_S = min_b sdRoundCone_b``
+    is the signed distance of the union (exact outside the silhouette, a lower bound inside).
+recon_rev_mean, recon_rev_p95, recon_rev_max
     Silhouette -> mesh: samples of the silhouette's boundary (area-uniform on every round cone's
     surface, keeping only those not strictly inside any primitive) to the mesh surface (exact
     point-to-triangle distance), / D. A silhouette bulging out of the mesh is penalised here.
@@ -33,13 +36,23 @@ inside
     closed meshes (up to rays grazing an edge, which the vote absorbs) and O(points + faces).
 skeleton_components, skeleton_cycles
     Connected components ``C`` of the joint graph and independent cycles ``B - J + C``.
-mesh_components, mesh_genus, mesh_boundaries, mesh_euler
+mesh_components, mesh_genus, mesh_boundaries, mesh_euler, mesh_nonmanifold_edges
     Of the cleaned mesh (duplicate positions merged): per component ``chi = V - E + F`` and
     ``g = (2 - chi - b) / 2`` with ``b`` boundary loops; genus and boundaries are summed.
+    Edges with more than two faces are counted (the genus formula assumes none).
 topology_match
     ``skeleton_components == mesh_components and skeleton_cycles == mesh_genus``.
 joints, bones, leaves, branch_points
     Sizes; leaves have degree 1, branch points degree >= 3.
+D, measure_seconds
+    The normalising length, and seconds spent per group of measures.
+
+Cost
+----
+No Python loop over points or faces. Nearest-primitive queries (round cones, triangles) use a
+KD-tree on primitive centres with an exact stopping rule, so results equal brute force; points far
+from every primitive (a silhouette bulging far out of the mesh) are the slow case. On armadillo
+(86k faces, 2 cores) the whole set takes about 2-6 s with 20,000 samples.
 """
 
 from __future__ import annotations
@@ -184,7 +197,7 @@ def _min_over_primitives(P, centres, rho, fn, *, k=8, upper=None):
     small = np.flatnonzero(~big)
     if small.size == 0:
         return best, arg
-    tree = cKDTree(centres[small])
+    tree = cKDTree(centres[small], balanced_tree=False, compact_nodes=False)
     rmax = float(rho[small].max())
     todo = np.arange(n)
     kprev, kk = 0, min(k, small.size)
@@ -217,7 +230,7 @@ def _min_over_primitives(P, centres, rho, fn, *, k=8, upper=None):
             settled.append(ok)
         todo = todo[~np.concatenate(settled)]
         kprev, kk = kk, min(kk * 4, small.size)
-        if kk > 128 and todo.size:
+        if kk > 32 and todo.size:
             break
     if todo.size:
         # Far points (many primitives at similar distances): every primitive whose ball can beat
@@ -379,7 +392,7 @@ def mesh_distance(P, V, F):
         return point_triangle_distance(P[pi], T[pj, 0], T[pj, 1], T[pj, 2])
 
     used = np.unique(F)
-    upper = cKDTree(V[used]).query(P)[0]          # distance to the nearest vertex: attained
+    upper = cKDTree(V[used], balanced_tree=False).query(P)[0]    # nearest vertex: attained
     best, _ = _min_over_primitives(P, cen, rho, fn, upper=upper)
     return best
 

@@ -118,7 +118,8 @@ def project_on_bones(points: np.ndarray, joints: np.ndarray, bones: np.ndarray,
     t = a[0] * ub[0] + a[1] * ub[1] + a[2] * ub[2]
     t *= np.take(inv, bone_ids)
     np.clip(t, 0.0, 1.0, out=t)
-    t[np.take(uu, bone_ids) == 0] = 0.5
+    if np.any(uu == 0):
+        t[np.take(uu, bone_ids) == 0] = 0.5
     a -= t * ub
     return t, a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
 
@@ -161,21 +162,33 @@ def refit_mapping(pr: FitProblem, neighbours: tuple[np.ndarray, np.ndarray] | No
     if e_old is None:
         e_old = sigma_terms(pr)[2]
     P, bone = pr.points, pr.bone
+    n = len(bone)
     best_b = bone.copy()
     best_t, best_d2 = project_on_bones(P, pr.joints, pr.bones, bone)
     if table.shape[1] > 1:
         c = np.take(count, bone)
         for k in range(1, table.shape[1]):
+            cb = np.take(table[:, k], bone)       # padded with the own bone: never strictly closer
             sub = np.flatnonzero(c > k)           # points whose bone has a k-th candidate
             if len(sub) == 0:
                 break
-            cb = np.take(table[:, k], np.take(bone, sub))
-            tk, d2k = project_on_bones(P, pr.joints, pr.bones, cb, rows=sub)
-            better = d2k < best_d2[sub]
-            sb = sub[better]
-            best_b[sb], best_t[sb], best_d2[sb] = cb[better], tk[better], d2k[better]
-    cand = FitProblem(P, pr.weights, pr.joints, pr.bones, best_b, best_t)
-    e_new = sigma_terms(cand)[2]
+            if 2 * len(sub) > n:                  # most points: a full pass, no row gathers
+                tk, d2k = project_on_bones(P, pr.joints, pr.bones, cb)
+                better = d2k < best_d2
+                np.copyto(best_b, cb, where=better)
+                np.copyto(best_t, tk, where=better)
+                np.copyto(best_d2, d2k, where=better)
+            else:
+                cb = cb[sub]
+                tk, d2k = project_on_bones(P, pr.joints, pr.bones, cb, rows=sub)
+                better = d2k < best_d2[sub]
+                sb = sub[better]
+                best_b[sb], best_t[sb], best_d2[sb] = cb[better], tk[better], d2k[better]
+    # e = |v - sigma|^2 - rho^2 with |v - sigma|^2 = best_d2 already known: only rho is needed.
+    r = pr.joints[:, 3]
+    rj = r[pr.bones[:, 1]]
+    rho = np.take(rj, best_b) + best_t * np.take(r[pr.bones[:, 0]] - rj, best_b)
+    e_new = best_d2 - rho * rho
     take = np.abs(e_new) < np.abs(e_old)
     new_bone = np.where(take, best_b, bone)
     new_t = np.where(take, best_t, pr.t)

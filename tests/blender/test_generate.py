@@ -1,6 +1,8 @@
 """curveskel.generate in headless Blender: results, parity with the core, replacing, undo,
 the source left untouched, and every bad input reported without changing anything."""
 
+import json
+
 import bpy
 import numpy as np
 import pytest
@@ -269,3 +271,92 @@ def test_bad_input_reports_and_changes_nothing(setup, message, make_mesh, scene_
         bpy.ops.curveskel.generate(**props)
     assert scene_snapshot() == before
     assert "CurveSkel" not in bpy.data.collections
+
+
+# -- the command line's Blender path (curveskel_addon.headless) -------------------------------
+@pytest.mark.parametrize("suffix", [".obj", ".ply", ".stl", ".off"])
+def test_import_mesh_with_blender_importers(suffix, tmp_path):
+    import trimesh
+
+    from curveskel_addon import headless
+
+    V, F = capsule(length=3.0, n_around=16, n_body=12)
+    path = tmp_path / f"capsule{suffix}"
+    trimesh.Trimesh(V, F, process=False).export(path)
+    ob = headless.import_mesh(path)
+    assert ob.type == 'MESH' and ob.name == "capsule" and bpy.context.view_layer.objects.active == ob
+    assert len(ob.data.polygons) == len(F)
+    found = headless.generate(ob)
+    assert found["armature"] is not None and found["silhouette"] is not None
+
+
+def test_cli_outputs_blend_and_render(tmp_path):
+    """--blend and --render: a .blend with mesh, armature and silhouette; a PNG (tiny here)."""
+    import trimesh
+
+    from curveskel_addon import headless
+
+    V, F = capsule(length=3.0, n_around=16, n_body=12)
+    mesh = tmp_path / "cap.obj"
+    trimesh.Trimesh(V, F, process=False).export(mesh)
+    orig = headless.render_preview
+
+    def tiny(path, ob):
+        return orig(path, ob, resolution=(96, 72), samples=2)
+    headless.render_preview = tiny
+    try:
+        out = headless.cli_outputs(mesh, {"spacing": 0.08}, blend=tmp_path / "cap.blend",
+                                   render=tmp_path / "cap.png")
+    finally:
+        headless.render_preview = orig
+    assert out["armature"].name == "cap.skeleton" and out["silhouette"].name == "cap.silhouette"
+    png = (tmp_path / "cap.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 1000
+    # the preview's helpers are gone; the silhouette is back to not rendering
+    assert not [o.name for o in bpy.data.objects if o.name.startswith("CurveSkel Preview")]
+    assert out["silhouette"].hide_render
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "cap.blend"))
+    assert {"cap", "cap.skeleton", "cap.silhouette"} <= {o.name for o in bpy.data.objects}
+    assert json.loads(bpy.data.objects["cap.skeleton"]["curveskel_params"])["spacing"] == 0.08
+
+
+# -- interactive mode: what the modal timer drives (timers do not run headless) ---------------
+def test_live_run_updates_the_silhouette_and_can_be_stopped(make_mesh, mesh_arrays):
+    from curveskel_addon.ops_generate import LiveRun, build_result
+    from curveskel_addon.properties import settings_dict
+
+    ob = make_mesh("Cylinder", *capsule())
+    _generate(ob)                                    # a previous result to replace
+    live = LiveRun(bpy.context, ob, SkeletonParams())
+    first = _silhouette_arrays(live.silhouette)[0].copy()
+    assert live.silhouette.name.startswith("Cylinder.silhouette")
+    assert not live.advance(3)                       # E0 and two iterations, not converged yet
+    moved = _silhouette_arrays(live.silhouette)[0]
+    assert not np.allclose(moved, first)             # the silhouette follows the solver
+    sk = live.stop()                                 # what Esc does
+    assert sk.iterations == live.state.iteration == 2
+    assert sk.energy[-1] == min(sk.energy) and sk.energy[-1] < sk.energy[0]
+    np.testing.assert_allclose(moved, sk.joints[:, :3], atol=1e-5)
+    options = settings_dict(bpy.context.scene.curveskel)
+    found = build_result(bpy.context, ob, sk, options, live_silhouette=live.silhouette, stopped=True)
+    assert found["silhouette"] == live.silhouette and found["silhouette"].name == "Cylinder.silhouette"
+    assert sorted(o.name for o in bpy.data.objects) == ["Cylinder", "Cylinder.silhouette", "Cylinder.skeleton"]
+    arm = found["armature"]
+    assert arm["curveskel_stopped"] and arm["curveskel_iterations"] == 2
+
+
+def test_live_run_to_the_end_equals_execute(make_mesh, mesh_arrays):
+    from curveskel_addon.ops_generate import LiveRun
+
+    ob = make_mesh("Cylinder", *capsule())
+    live = LiveRun(bpy.context, ob, SkeletonParams())
+    while not live.advance(3):
+        pass
+    sk = live.stop()
+    V, F = mesh_arrays(ob)
+    ref = skeletonize(V, F, SkeletonParams())
+    np.testing.assert_array_equal(sk.bones, ref.bones)
+    np.testing.assert_allclose(sk.joints, ref.joints, rtol=1e-7, atol=1e-9)
+    assert sk.energy == pytest.approx(ref.energy)
+    live.discard()
+    assert "Cylinder.silhouette" not in bpy.data.objects

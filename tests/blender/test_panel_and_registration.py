@@ -134,3 +134,62 @@ def test_relative_imports_only():
             offenders += [f"{p.relative_to(ROOT)}:{node.lineno}" for n in names
                           if n.split(".")[0] == "curveskel_addon"]
     assert offenders == []
+
+
+class _Layout:
+    """Stands in for bpy.types.UILayout (there is no UI headless): records what a draw() asks
+    for and checks that every property and operator it names exists."""
+
+    def __init__(self, log):
+        object.__setattr__(self, "log", log)
+
+    def __setattr__(self, name, value):
+        self.log.append(("set", name, value))
+
+    def _child(self, *args, **kw):
+        return _Layout(self.log)
+
+    column = row = box = split = grid_flow = _child
+
+    def prop(self, data, name, **kw):
+        assert name in data.bl_rna.properties, f"{data!r} has no property {name!r}"
+        self.log.append(("prop", name))
+
+    def label(self, text="", **kw):
+        self.log.append(("label", text))
+
+    def operator(self, idname, **kw):
+        mod, name = idname.split(".")
+        op = getattr(getattr(bpy.ops, mod), name)
+        props = op.get_rna_type().properties
+        log = self.log
+        log.append(("operator", idname))
+
+        class _Props:
+            def __setattr__(self, key, value):
+                assert key in props, f"{idname} has no property {key!r}"
+                log.append(("opset", key, value))
+        return _Props()
+
+
+def _draw(panel_cls, context):
+    log = []
+    fake = type("FakePanel", (), {"layout": _Layout(log)})()
+    panel_cls.draw(fake, context)
+    return log
+
+
+def test_panels_draw_parameters_button_and_figures(make_mesh):
+    ob = make_mesh("Cylinder", *capsule())
+    log = _draw(panel.CURVESKEL_PT_main, bpy.context)
+    assert ("operator", "curveskel.generate") in log
+    assert {k for _, k, *_ in (e for e in log if e[0] == "opset")} == set(settings_dict(bpy.context.scene.curveskel))
+    assert {e[1] for e in log if e[0] == "prop"} >= set(PARAM_NAMES)
+    assert {e[1] for e in _draw(panel.CURVESKEL_PT_advanced, bpy.context) if e[0] == "prop"} == set(ADVANCED_NAMES)
+    assert ("label", "No result for the active object") in _draw(panel.CURVESKEL_PT_result, bpy.context)
+    bpy.ops.curveskel.generate()
+    log = _draw(panel.CURVESKEL_PT_result, bpy.context)
+    labels = [e[1] for e in log if e[0] == "label"]
+    arm = results.find_result("Cylinder")["armature"]
+    assert "Cylinder" in labels and "Bones" in labels and str(arm["curveskel_n_bones"]) in labels
+    assert ("operator", "curveskel.select_armature") in log and ("operator", "curveskel.toggle_silhouette") in log

@@ -5,7 +5,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from curveskel_addon.core.candidates import best_of_candidates, candidate_settings
+from curveskel_addon.core.candidates import (best_of_candidates, candidate_settings,
+                                             skeleton_extent)
 from curveskel_addon.core.params import SkeletonParams
 from curveskel_addon.core.problem import SolverState
 from meshes import capsule, star
@@ -50,6 +51,39 @@ def test_the_lowest_energy_candidate_wins_and_ties_go_first():
     assert fa.meta["candidate_index"] == int(np.argmin(E))
     assert recs[fa.meta["candidate_index"]]["chosen"] and sum(r["chosen"] for r in recs) == 1
     assert E.min() == min(r["E"] for r in recs if "duplicate_of" not in r)
+    assert all(r["valid"] for r in recs)
+
+
+def runaway_solve_steps(pr, **kw):
+    """Lowers E by sending joint 0 far away when the radius is large (a stand-in for the
+    run-away joints measured on real meshes)."""
+    from curveskel_addon.core.energy import energy
+
+    J = pr.joints.copy()
+    if J[0, 3] > 1.25:
+        J[0, :3] += 100.0
+    E = 1e-6 if J[0, 3] > 1.25 else energy(pr, J)
+    yield SolverState(0, J, pr.bone, pr.t, E, done=True)
+
+
+def test_a_runaway_skeleton_loses_to_a_valid_one():
+    V, F = capsule()
+    p = SkeletonParams(candidates=6, spacing=0.04, seed=0)
+    fa = best_of_candidates(V, F, p, first_approximation=fake_first_approximation,
+                            solve_steps=runaway_solve_steps)
+    recs = fa.meta["candidates"]
+    bad = [r for r in recs if not r["valid"]]
+    assert bad and all(r["outside"] > 1 for r in bad)
+    win = recs[fa.meta["candidate_index"]]
+    assert win["valid"] and min(r["E"] for r in recs) < win["E"]
+    assert win["E"] == min(r["E"] for r in recs if r["valid"])
+
+
+def test_skeleton_extent():
+    V = np.array([[0.0, 0, 0], [3, 4, 0]])                 # diagonal 5
+    J = np.array([[1.0, 1, 0, 0.5], [3.5, 2, 0, 1.0]])
+    out, r = skeleton_extent(J, V)
+    assert out == pytest.approx(0.1) and r == pytest.approx(0.2)
 
 
 # -- with the real stages --------------------------------------------------------------------------
@@ -64,7 +98,7 @@ def test_real_candidates_choose_the_minimum_and_are_deterministic(star_mesh):
     a = best_of_candidates(V, F, p)
     b = best_of_candidates(V, F, p)
     recs = a.meta["candidates"]
-    E = [r["E"] for r in recs]
+    E = [r["E"] if r["valid"] else np.inf for r in recs]
     assert len(recs) == 3 and a.meta["candidate_index"] == int(np.argmin(E))
     assert np.isfinite(min(E))
     assert a.meta["candidate_index"] == b.meta["candidate_index"]

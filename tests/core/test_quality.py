@@ -236,3 +236,24 @@ def test_bone_points_and_zero_radius_silhouette():
     # the silhouette is the segment itself: both directions ~ R / D (caps excepted)
     assert q["recon_rev_mean"] == pytest.approx(R / q["D"], rel=0.01)
     assert q["recon_mean"] == pytest.approx(R / q["D"], rel=0.05)
+
+
+def test_pruned_minimum_is_exact_for_far_points():
+    """Far points take the ball-query path of the pruning; it must still equal brute force."""
+    V, F = torus(n_major=96, n_minor=32)
+    T = V[F]
+    rng = np.random.default_rng(5)
+    P = rng.normal(size=(150, 3))
+    P = P / np.linalg.norm(P, axis=1, keepdims=True) * rng.uniform(1, 12, size=(150, 1))
+    P[:50, 2] = 0.0
+    P[:50, :2] *= 0.25 / np.maximum(np.linalg.norm(P[:50, :2], axis=1, keepdims=True), 1e-9)  # near the hole's axis
+    n, m = len(P), len(F)
+    PI = np.repeat(np.arange(n), m)
+    full = point_triangle_distance(P[PI], np.tile(T[:, 0], (n, 1)), np.tile(T[:, 1], (n, 1)),
+                                   np.tile(T[:, 2], (n, 1))).reshape(n, m).min(axis=1)
+    assert np.allclose(mesh_distance(P, V, F), full, rtol=0, atol=1e-12)
+    sk = ring_skeleton(n=400, r=0.8)
+    a, b = sk.joints[sk.bones[:, 0], :3], sk.joints[sk.bones[:, 1], :3]
+    ra, rb = sk.joints[sk.bones[:, 0], 3], sk.joints[sk.bones[:, 1], 3]
+    full = sd_round_cone(P[:, None], a[None], b[None], ra[None], rb[None]).min(axis=1)
+    assert np.allclose(silhouette_sdf(P, sk.joints, sk.bones), full, rtol=0, atol=1e-12)

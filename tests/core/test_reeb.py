@@ -3,8 +3,10 @@ meshes, open and non-manifold input, and leaf counts on the shared meshes."""
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 import trimesh
 import trimesh.creation
+from scipy.sparse.csgraph import connected_components
 
 from curveskel_addon.core.errors import CurveSkelError
 from curveskel_addon.core.reeb import first_approximation
@@ -38,8 +40,6 @@ def assert_valid(fa, n):
     assert np.all((fa.t >= 0) & (fa.t <= 1))
     assert set(STAGES) <= set(fa.meta["timings"])
     # the skeleton is connected
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import connected_components
     A = sp.coo_matrix((np.ones(len(B)), (B[:, 0], B[:, 1])), shape=(len(J), len(J)))
     assert connected_components(A, directed=False)[0] == 1
 

@@ -38,7 +38,7 @@ def solve_steps(problem: FitProblem, *, solver: str = "lm", max_iterations: int 
     tolerance : float
         "paper": stop when an iteration changes E by less than ``tolerance * E0`` (eqs. 30-31).
         "lm": stop when an iteration lowers E by less than ``tolerance / 10 * E`` and the
-        Gauss-Newton model predicted no more.
+        scaled gradient is as small (see :mod:`.lm`).
     refit_mapping : bool
         Re-fit sigma (each vertex's bone and t) between steps; E still never increases.
     stats : dict, optional
