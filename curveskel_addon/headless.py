@@ -18,6 +18,7 @@ __all__ = ["reset_scene", "ensure_registered", "mesh_object_from_arrays", "impor
            "generate", "save_blend", "render_preview", "cli_outputs"]
 
 PREVIEW_COLLECTION = "CurveSkel Preview"
+_VISIBILITY = ("visible_shadow", "visible_diffuse", "visible_glossy", "visible_transmission")
 
 
 def reset_scene() -> None:
@@ -70,7 +71,7 @@ def import_mesh(path) -> bpy.types.Object:
     elif suffix == ".stl":
         bpy.ops.wm.stl_import(filepath=str(path))
     elif suffix == ".off":
-        from .core.mesh_io import read_mesh   # trimesh: command line only, never inside Blender
+        from .core.mesh_io import read_mesh  # trimesh: command line only, never inside Blender
 
         V, F = read_mesh(path)
         return mesh_object_from_arrays(path.stem, V, F)
@@ -118,8 +119,9 @@ def render_preview(path, ob, *, resolution=(640, 480), samples: int = 8) -> Path
 
     Armatures do not render: temporary copies of the silhouette's joints and bones draw the
     silhouette (balls of the joint radii joined by cones) and the skeleton (thin tubes, a red
-    ball per joint). ``ob`` gets a transparent material and the scene a camera framing it, two
-    sun lights and a light world; the temporary objects are removed afterwards.
+    ball per joint), ``ob`` is drawn see-through, a camera frames it all, two suns and a light
+    world light it. Afterwards the temporary objects and materials are removed and ``ob`` is as
+    it was (the scene keeps the Cycles settings and the world).
     """
     path = Path(path).resolve()
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -129,6 +131,9 @@ def render_preview(path, ob, *, resolution=(640, 480), samples: int = 8) -> Path
     made = []
     coll = bpy.data.collections.new(PREVIEW_COLLECTION)
     scene.collection.children.link(coll)
+    materials_before = set(bpy.data.materials)
+    ob_materials = list(ob.data.materials)
+    ob_visibility = {k: getattr(ob, k) for k in _VISIBILITY}
     try:
         _assign(ob, _xray_material("CurveSkel Preview Mesh", (0.32, 0.42, 0.58), edge=0.9))
         size = max(ob.dimensions) or 1.0
@@ -149,8 +154,8 @@ def render_preview(path, ob, *, resolution=(640, 480), samples: int = 8) -> Path
                 _material("CurveSkel Preview Joints", (0.85, 0.05, 0.1), roughness=0.3, emission=0.3)))
         for o in (ob, made[0] if made else None):
             if o is not None:      # transparent layers: seen by the camera only (much faster)
-                o.visible_shadow = o.visible_diffuse = o.visible_glossy = False
-                o.visible_transmission = False
+                for k in _VISIBILITY:
+                    setattr(o, k, False)
         _setup_render(scene, path, resolution, samples)     # before framing: the aspect ratio
         made.append(_camera(coll, ob, sil))
         made += _lights(coll)
@@ -163,6 +168,14 @@ def render_preview(path, ob, *, resolution=(640, 480), samples: int = 8) -> Path
                 bpy.data.node_groups.remove(o.modifiers[0].node_group)
         results.remove_objects(made)
         bpy.data.collections.remove(coll)
+        # the source object as it was: its materials and ray visibility
+        ob.data.materials.clear()
+        for mat in ob_materials:
+            ob.data.materials.append(mat)
+        for k, v in ob_visibility.items():
+            setattr(ob, k, v)
+        for mat in set(bpy.data.materials) - materials_before:
+            bpy.data.materials.remove(mat)
     return path
 
 
@@ -410,8 +423,12 @@ def cli_outputs(mesh_path, params: dict, *, blend=None, render=None, bind: bool 
     reset_scene()
     ensure_registered()
     ob = import_mesh(mesh_path)
+    known = {p.identifier for p in bpy.ops.curveskel.generate.get_rna_type().properties}
+    dropped = sorted(set(params) - known)
+    if dropped:
+        print(f"warning: the Blender operator has no parameter {', '.join(dropped)}: left at its default")
     t0 = time.perf_counter()
-    found = generate(ob, **params, bind=bind)
+    found = generate(ob, **{k: v for k, v in params.items() if k in known}, bind=bind)
     out = {"object": ob, **found, "operator_seconds": time.perf_counter() - t0}
     if blend is not None:
         out["blend"] = save_blend(blend)

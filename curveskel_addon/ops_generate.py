@@ -16,8 +16,14 @@ from .binding import bind_mesh
 from .core import CurveSkelError, SkeletonRun
 from .mesh_read import evaluated_triangles
 from .preferences import get_preferences
-from .properties import (ADVANCED_NAMES, OPTION_NAMES, PARAM_NAMES, GenerateSettings, settings_dict,
-                         skeleton_params)
+from .properties import (
+    ADVANCED_NAMES,
+    OPTION_NAMES,
+    PARAM_NAMES,
+    GenerateSettings,
+    settings_dict,
+    skeleton_params,
+)
 from .silhouette import build_silhouette, update_silhouette
 
 __all__ = ["CURVESKEL_OT_generate", "LiveRun", "input_problem", "build_result", "CLASSES"]
@@ -135,6 +141,7 @@ class LiveRun:
         results.tag(self.silhouette, src.name, "silhouette")
         self._steps = self.run.steps()
         self.state = None
+        self._best = None                    # (E, Skeleton) of the lowest energy so far
 
     def advance(self, iterations: int) -> bool:
         """Run up to ``iterations`` solver iterations, then redraw the silhouette.
@@ -144,16 +151,23 @@ class LiveRun:
             if state is None:
                 return True
             self.state = state
+            if self._best is None or state.energy <= self._best[0]:
+                self._best = (state.energy, self.run.current_skeleton())
             if state.done:
                 return True
         update_silhouette(self.silhouette, self.run.current_skeleton())
         return False
 
     def stop(self):
-        """End the run; the skeleton as it stands (the solvers only ever lower E, so the latest
-        iterate is the best one so far)."""
+        """End the run; the skeleton of lowest energy so far (the solvers never raise E, so in
+        practice the latest iterate, but a stop must never hand back a worse one)."""
         self._steps.close()
-        return self.run.current_skeleton()
+        latest = self.run.current_skeleton()
+        if self._best is None or (latest.energy and latest.energy[-1] <= self._best[0]):
+            return latest
+        best = self._best[1]
+        best.timings = dict(self.run.timings)
+        return best
 
     def discard(self) -> None:
         self._steps.close()

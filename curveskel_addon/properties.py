@@ -110,7 +110,3 @@ class CurveSkelSceneSettings(GenerateSettings, bpy.types.PropertyGroup):
 
 
 CLASSES = (CurveSkelSceneSettings,)
-
-
-# Every SkeletonParams field is a property: the UI can run whatever the command line can.
-assert set(PARAM_NAMES + ADVANCED_NAMES) == set(SkeletonParams().to_dict()), "GenerateSettings out of date"

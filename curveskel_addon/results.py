@@ -13,8 +13,8 @@ import json
 import bpy
 
 __all__ = ["COLLECTION_NAME", "FIGURE_KEYS", "collection", "result_names", "find_result",
-           "source_of", "previous_results", "remove_objects", "adopt_names", "tag", "store_figures", "figures",
-           "root_joints"]
+           "source_of", "previous_results", "remove_objects", "adopt_names", "tag", "store_figures",
+           "figures", "root_joints"]
 
 COLLECTION_NAME = "CurveSkel"
 SOURCE_KEY = "curveskel_source"

@@ -92,7 +92,8 @@ def fetch_wheels(wheels: list[str], platforms: list[str], dest: Path) -> None:
                 print("downloading", name, file=sys.stderr)
                 subprocess.run(cmd, check=True)
             if not (cache / name).is_file():
-                sys.exit(f"error: pip did not fetch {name} (found: {sorted(x.name for x in cache.glob('*.whl'))})")
+                found = sorted(x.name for x in cache.glob("*.whl"))
+                sys.exit(f"error: pip did not fetch {name} (found: {found})")
             shutil.copy2(cache / name, dest / name)
 
 

@@ -33,7 +33,8 @@ def central_joints(joints, bones) -> np.ndarray:
 
     Examples
     --------
-    >>> central_joints([[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0], [9, 0, 0]], [[0, 1], [1, 2], [2, 3]]).tolist()
+    >>> P = [[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0], [9, 0, 0]]
+    >>> central_joints(P, [[0, 1], [1, 2], [2, 3]]).tolist()
     [1, 4]
     """
     P = np.asarray(joints, dtype=np.float64)

@@ -39,6 +39,16 @@ class SkeletonParams:
         Merge a joint of degree 2 when E barely changes (relative threshold, 0 disables).
     candidates : int
         Number of first approximations (poles / spacings) tried; the one of lowest E is kept.
+    smoothness : float
+        Weight of a Laplacian term keeping chain joints between their neighbours ("lm" only;
+        0 disables). Relative to E; see :mod:`.solvers.lm`.
+    containment : float
+        Weight of a term keeping each joint inside the mesh with its ball inside the surface
+        ("lm" only; 0 disables). Stops joints running away while E still falls.
+    max_fit_points : int
+        Above this many vertices the solver fits an area-weighted random subset of this size
+        (a quadrature of the same surface integral) and maps every vertex at the end.
+        0 = always fit every vertex. Needs area_weighted.
     """
 
     spacing: float = 0.04
@@ -48,15 +58,19 @@ class SkeletonParams:
     seed: int = 0
     area_weighted: bool = True
     refit_mapping: bool = True
-    prune: float = 0.0
-    simplify: float = 0.0
-    candidates: int = 1
+    prune: float = 0.02
+    simplify: float = 0.01
+    candidates: int = 3
+    smoothness: float = 0.0
+    containment: float = 0.0
+    max_fit_points: int = 60000
 
     @classmethod
     def paper(cls, **overrides) -> "SkeletonParams":
         """The method exactly as the paper describes it (vertex sum, fixed sigma, gradient descent)."""
         base = dict(solver="paper", area_weighted=False, refit_mapping=False, prune=0.0,
-                    simplify=0.0, candidates=1, max_iterations=1000)
+                    simplify=0.0, candidates=1, max_iterations=1000, smoothness=0.0,
+                    containment=0.0, max_fit_points=0)
         base.update(overrides)
         return cls(**base)
 

@@ -13,12 +13,16 @@ from typing import Callable, Iterator
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .candidates import best_of_candidates
 from .errors import CurveSkelError
 from .mesh_graph import components
+from .mapping import closest_on_bones
 from .mesh_input import clean_mesh
 from .params import SOLVERS, SkeletonParams
+from .postprocess import postprocess
 from .problem import FitProblem, SolverState
 from .reeb import first_approximation
+from .refit import bone_neighbours
 from .skeleton import Skeleton
 from .solvers import solve_steps
 from .vertex_area import vertex_areas
@@ -52,6 +56,7 @@ class SkeletonRun:
         self.problem = self._first_approximation()
         self.energy: list[float] = []
         self._state: SolverState | None = None
+        self.postprocess_log: dict | None = None
 
     # -- stages --------------------------------------------------------------------------------
     @contextmanager
@@ -75,7 +80,13 @@ class SkeletonRun:
             vids = order[starts[c]:starts[c + 1]]
             local[vids] = np.arange(len(vids))
             Fc = local[F[forder[fstarts[c]:fstarts[c + 1]]]]
-            fa = first_approximation(V[vids], Fc, spacing=p.spacing, seed=p.seed + c)
+            # Several candidates cost several full first approximations and short solves; on a
+            # component larger than the fit subset one candidate is used (recorded in meta).
+            if p.candidates > 1 and (not p.max_fit_points or len(vids) <= p.max_fit_points):
+                with self._timed("candidates"):
+                    fa = best_of_candidates(V[vids], Fc, p, seed=p.seed + c)
+            else:
+                fa = first_approximation(V[vids], Fc, spacing=p.spacing, seed=p.seed + c)
             for stage, sec in fa.meta.get("timings", {}).items():
                 self.timings[stage] = self.timings.get(stage, 0.0) + sec
             joints.append(fa.joints)
@@ -93,7 +104,45 @@ class SkeletonRun:
             if p.area_weighted:
                 w = w * (len(V) / max(w.sum(), 1e-300))   # mean weight 1: E stays on the vertex-sum scale
         self.component_meta = comp_meta
-        return FitProblem(V, w, np.concatenate(joints), np.concatenate(bones), bone, t)
+        pr = FitProblem(V, w, np.concatenate(joints), np.concatenate(bones), bone, t)
+        # Regularisation settings travel with the problem (the "lm" solver reads them).
+        pr.meta["regularisation"] = {"smoothness": float(p.smoothness),
+                                     "containment": float(p.containment), "surface": (V, F)}
+        self.fit_subset = None
+        if p.area_weighted and p.max_fit_points and len(V) > p.max_fit_points:
+            with self._timed("weights"):
+                pr = self._subsample(pr, p.max_fit_points)
+        return pr
+
+    def _subsample(self, pr: FitProblem, k: int) -> FitProblem:
+        """Fit k random vertices instead of all of them.
+
+        With area weights E is a quadrature of the surface integral (eq. 8); a uniform random
+        subset with weights scaled by n/k is an unbiased quadrature of the same integral, so the
+        solver's cost stops growing with the mesh while the skeleton stays that of the surface.
+        Every vertex is mapped onto the final skeleton in :meth:`_full_mapping`.
+        """
+        n = len(pr.points)
+        rng = np.random.default_rng(self.params.seed)
+        idx = np.sort(rng.choice(n, size=k, replace=False))
+        self.fit_subset = idx
+        sub = FitProblem(pr.points[idx], pr.weights[idx] * (n / k), pr.joints, pr.bones,
+                         pr.bone[idx], pr.t[idx], dict(pr.meta))
+        return sub
+
+    def _full_mapping(self, joints, bones, bone_sub) -> tuple[np.ndarray, np.ndarray]:
+        """Map every working vertex: the bone of its nearest fitted point and that bone's
+        neighbours are the candidates; the closest point on them is sigma (eq. 19)."""
+        V = self.mesh.V
+        _, nn = cKDTree(V[self.fit_subset]).query(V, workers=-1)
+        seed_bone = bone_sub[nn]
+        table, count = bone_neighbours(bones, len(joints))
+        c = count[seed_bone]
+        mask = np.arange(table.shape[1])[None, :] < c[:, None]
+        ids = table[seed_bone][mask]
+        indptr = np.concatenate([[0], np.cumsum(c)])
+        bone, t, _ = closest_on_bones(V, joints, bones, (indptr, ids))
+        return bone, t
 
     def steps(self) -> Iterator[SolverState]:
         """Run the solver, yielding its state after every iteration (the first is E0)."""
@@ -118,14 +167,43 @@ class SkeletonRun:
         return self._to_skeleton(joints, pr.bones, bone, t)
 
     def result(self) -> Skeleton:
-        """Run any remaining steps and return the final Skeleton."""
+        """Run any remaining steps, then prune/simplify (once), and return the final Skeleton."""
         if self._state is None or not self._state.done:
             for _ in self.steps():
                 pass
+        self._postprocess()
         return self.current_skeleton()
+
+    def _postprocess(self) -> None:
+        """Prune noise branches and merge straight-chain joints (``params.prune``/``simplify``),
+        re-optimising after each; replaces the problem's bones and the final state."""
+        p, st = self.params, self._state
+        if self.postprocess_log is not None or not (p.prune > 0 or p.simplify > 0):
+            return
+        pr = self.problem.copy()
+        pr.joints, pr.bone, pr.t = st.joints, st.bone, st.t
+        with self._timed("postprocess"):
+            out = postprocess(pr, p, self._solve)
+        self.postprocess_log = out.meta["postprocess"]
+        self.problem = FitProblem(out.points, out.weights, out.joints, out.bones, out.bone, out.t,
+                                  dict(pr.meta))
+        self._state = SolverState(st.iteration, out.joints, out.bone, out.t,
+                                  self.postprocess_log["energy_out"], done=True)
+
+    def _solve(self, pr: FitProblem) -> FitProblem:
+        """Re-optimise ``pr`` with the run's solver settings (used after pruning/merging)."""
+        p, last = self.params, None
+        for last in solve_steps(pr, solver=p.solver, max_iterations=p.max_iterations,
+                                tolerance=p.tolerance, refit_mapping=p.refit_mapping):
+            pass
+        out = pr.copy()
+        out.joints, out.bone, out.t = last.joints, last.bone, last.t
+        return out
 
     # -- output --------------------------------------------------------------------------------
     def _to_skeleton(self, joints, bones, bone_w, t_w) -> Skeleton:
+        if self.fit_subset is not None:
+            bone_w, t_w = self._full_mapping(np.asarray(joints), np.asarray(bones), np.asarray(bone_w))
         wi = self.mesh.work_index
         iso = wi < 0
         if iso.any():
@@ -137,8 +215,13 @@ class SkeletonRun:
                         timings=dict(self.timings), meta=self._meta())
 
     def _meta(self) -> dict:
-        return {"params": self.params.to_dict(), "components": int(self.n_components),
-                "component_info": self.component_meta, "input": self.mesh.info}
+        meta = {"params": self.params.to_dict(), "components": int(self.n_components),
+                "component_info": self.component_meta, "input": self.mesh.info,
+                "fit_points": int(len(self.fit_subset) if self.fit_subset is not None
+                                  else len(self.mesh.V))}
+        if self.postprocess_log is not None:
+            meta["postprocess"] = self.postprocess_log
+        return meta
 
 
 def _check_params(p: SkeletonParams) -> None:
@@ -150,6 +233,12 @@ def _check_params(p: SkeletonParams) -> None:
         raise CurveSkelError("max_iterations must be >= 0")
     if not p.tolerance > 0:
         raise CurveSkelError("tolerance must be > 0")
+    if not (0 <= p.prune <= 1):
+        raise CurveSkelError(f"prune must be in [0, 1], got {p.prune}")
+    if not p.simplify >= 0:
+        raise CurveSkelError(f"simplify must be >= 0, got {p.simplify}")
+    if int(p.candidates) != p.candidates or p.candidates < 1:
+        raise CurveSkelError(f"candidates must be an integer >= 1, got {p.candidates}")
 
 
 def skeletonize(V, F, params: SkeletonParams | None = None, progress: Progress | None = None,

@@ -64,8 +64,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from .errors import CurveSkelError
-from .mesh_graph import adjacency, unique_edges
-from .mesh_input import clean_mesh
+from .mesh_graph import adjacency
 from .vertex_area import vertex_areas
 
 __all__ = ["quality", "sd_round_cone", "silhouette_sdf", "point_triangle_distance",
@@ -74,7 +73,7 @@ __all__ = ["quality", "sd_round_cone", "silhouette_sdf", "point_triangle_distanc
            "mesh_topology"]
 
 #: Elements per temporary array in chunked pairwise evaluations (bounds memory to ~tens of MB).
-_CHUNK = 1 << 21
+_CHUNK = 1 << 18
 
 
 # ---------------------------------------------------------------------------------------------
@@ -531,8 +530,7 @@ def _ray_parity(P, V, F, R):
     pc = np.clip(((Pr[pids, 1:] - glo) / cell).astype(np.int64), 0, G - 1)
     pcell = pc[:, 0] * G + pc[:, 1]
     n_per = starts[pcell + 1] - starts[pcell]
-    total = int(n_per.sum())
-    step = max(_CHUNK, 1)
+    step = _CHUNK
     # expand (point, triangle) pairs in chunks of points
     cum = np.cumsum(n_per)
     s = 0
@@ -558,7 +556,6 @@ def _ray_parity(P, V, F, R):
         hit &= xh > Pr[pp, 0]
         parity += np.bincount(pp[hit], minlength=len(P))
         s = int(sel[-1]) + 1
-    del total
     return parity % 2
 
 
@@ -669,12 +666,25 @@ def mesh_topology(V, F):
     Per component, ``chi = V - E + F`` and ``g = (2 - chi - b) / 2`` with ``b`` the boundary
     loops (cycles of edges with one face); totals are summed over components.
     """
-    cm = clean_mesh(V, F)
-    Vw, Fw = cm.V, cm.F
-    n = len(Vw)
+    V = np.asarray(V, dtype=np.float64).reshape(-1, 3)
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    # merge identical positions (lexsort is much faster than np.unique(axis=0) on big meshes)
+    order = np.lexsort(V.T[::-1])
+    Vs = V[order]
+    new_group = np.concatenate([[True], np.any(Vs[1:] != Vs[:-1], axis=1)])
+    gid = np.empty(len(V), np.int64)
+    gid[order] = np.cumsum(new_group) - 1
+    Fw = gid[F]
+    Fw = Fw[(Fw[:, 0] != Fw[:, 1]) & (Fw[:, 1] != Fw[:, 2]) & (Fw[:, 0] != Fw[:, 2])]
+    if len(Fw) == 0:
+        raise CurveSkelError("the mesh has no non-degenerate face")
+    used, Fw = np.unique(Fw, return_inverse=True)
+    Fw = Fw.reshape(-1, 3)
+    n = len(used)
     E = np.concatenate([Fw[:, [0, 1]], Fw[:, [1, 2]], Fw[:, [2, 0]]])
     E.sort(axis=1)
-    Eu, cnt = np.unique(E, axis=0, return_counts=True)
+    keys, cnt = np.unique(E[:, 0] * n + E[:, 1], return_counts=True)
+    Eu = np.stack([keys // n, keys % n], axis=1)
     C, lab = connected_components(adjacency(n, Eu), directed=False)
     nv = np.bincount(lab, minlength=C)
     ne = np.bincount(lab[Eu[:, 0]], minlength=C)

@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from meshes import capsule
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -25,7 +24,8 @@ INSTALL_AND_RUN = textwrap.dedent('''
         filepath=zip_path, repo="user_default", enable_on_install=True))}
     mod = "bl_ext.user_default.curveskel"
     out["enabled"] = mod in bpy.context.preferences.addons
-    out["operator_module"] = bpy.types.CURVESKEL_OT_generate.__module__ if hasattr(bpy.types, "CURVESKEL_OT_generate") else None
+    op = getattr(bpy.types, "CURVESKEL_OT_generate", None)
+    out["operator_module"] = op.__module__ if op is not None else None
     out["source_tree_imported"] = "curveskel_addon" in sys.modules
     prefs = bpy.context.preferences.addons[mod].preferences
     out["pref_spacing"] = round(prefs.spacing, 6)

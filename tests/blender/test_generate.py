@@ -6,12 +6,12 @@ import json
 import bpy
 import numpy as np
 import pytest
+from meshes import capsule, torus, two_capsules
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from curveskel_addon import results
 from curveskel_addon.core import SkeletonParams, skeletonize
-from meshes import capsule, torus, two_capsules
 
 
 def _graph(n, E):
@@ -53,7 +53,8 @@ def _check_parity(ob, found, mesh_arrays, params=None):
     np.testing.assert_allclose(co, sk.joints[:, :3], atol=1e-5 * scale, rtol=0)
     np.testing.assert_allclose(rad, np.repeat(sk.joints[:, 3:], 2, axis=1), atol=1e-5 * scale, rtol=0)
     # the armature keeps the skeleton itself (teammate's contract) and the figures
-    np.testing.assert_allclose(np.reshape(arm["curveskel_joints"], (-1, 4)), sk.joints, rtol=1e-7, atol=1e-9 * scale)
+    np.testing.assert_allclose(np.reshape(arm["curveskel_joints"], (-1, 4)), sk.joints,
+                               rtol=1e-7, atol=1e-9 * scale)
     np.testing.assert_array_equal(np.reshape(arm["curveskel_bones"], (-1, 2)), sk.bones)
     s = sk.summary()
     for ob_ in (arm, sil):
@@ -129,7 +130,8 @@ def test_rerun_replaces_previous_result(make_mesh, mesh_arrays):
     _generate(ob)
     arms, meshes = len(bpy.data.armatures), len(bpy.data.meshes)
     found = _generate(ob, spacing=0.08)
-    assert sorted(o.name for o in bpy.data.objects) == ["Cylinder", "Cylinder.silhouette", "Cylinder.skeleton"]
+    names = sorted(o.name for o in bpy.data.objects)
+    assert names == ["Cylinder", "Cylinder.silhouette", "Cylinder.skeleton"]
     assert (len(bpy.data.armatures), len(bpy.data.meshes)) == (arms, meshes)   # no orphans left
     assert found["armature"].data.name == "Cylinder.skeleton"
     assert found["silhouette"].data.name == "Cylinder.silhouette"
@@ -146,7 +148,7 @@ def test_one_undo_restores_the_scene(make_mesh, scene_snapshot):
     """One undo step removes everything the operator made (the armature's edit-mode round trip
     included). Background mode has no undo stack until ed.undo_push() creates one, and
     bpy.ops pushes the operator's own step only when called with undo=True (what the UI does)."""
-    ob = make_mesh("Cylinder", *capsule())
+    make_mesh("Cylinder", *capsule())
     bpy.ops.ed.undo_push(message="before CurveSkel")
     before = scene_snapshot()
     assert bpy.ops.curveskel.generate('EXEC_DEFAULT', True) == {'FINISHED'}
@@ -196,14 +198,13 @@ def test_bind_option_binds_the_mesh(make_mesh):
 
 
 def test_interactive_flag_runs_plain_execute_headless(make_mesh):
-    ob = make_mesh("Cylinder", *capsule())
+    make_mesh("Cylinder", *capsule())
     assert bpy.ops.curveskel.generate('INVOKE_DEFAULT', interactive=True) == {'FINISHED'}
     assert results.find_result("Cylinder")["armature"] is not None
 
 
 def test_success_is_reported(make_mesh, capsys):
-    ob = make_mesh("Cylinder", *capsule())
-    _generate(ob)
+    _generate(make_mesh("Cylinder", *capsule()))
     out = capsys.readouterr().out
     assert "CurveSkel 'Cylinder':" in out and "joints" in out and "E0" in out
 
@@ -314,7 +315,11 @@ def test_cli_outputs_blend_and_render(tmp_path):
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 1000
     # the preview's helpers are gone; the silhouette is back to not rendering
     assert not [o.name for o in bpy.data.objects if o.name.startswith("CurveSkel Preview")]
+    assert not [m.name for m in bpy.data.materials if m.name.startswith("CurveSkel Preview")]
+    assert not [g.name for g in bpy.data.node_groups if g.name.startswith("CurveSkel Preview")]
     assert out["silhouette"].hide_render
+    src = out["object"]
+    assert len(src.data.materials) == 0 and src.visible_shadow and src.visible_diffuse
     bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "cap.blend"))
     assert {"cap", "cap.skeleton", "cap.silhouette"} <= {o.name for o in bpy.data.objects}
     assert json.loads(bpy.data.objects["cap.skeleton"]["curveskel_params"])["spacing"] == 0.08
@@ -340,7 +345,8 @@ def test_live_run_updates_the_silhouette_and_can_be_stopped(make_mesh, mesh_arra
     options = settings_dict(bpy.context.scene.curveskel)
     found = build_result(bpy.context, ob, sk, options, live_silhouette=live.silhouette, stopped=True)
     assert found["silhouette"] == live.silhouette and found["silhouette"].name == "Cylinder.silhouette"
-    assert sorted(o.name for o in bpy.data.objects) == ["Cylinder", "Cylinder.silhouette", "Cylinder.skeleton"]
+    names = sorted(o.name for o in bpy.data.objects)
+    assert names == ["Cylinder", "Cylinder.silhouette", "Cylinder.skeleton"]
     arm = found["armature"]
     assert arm["curveskel_stopped"] and arm["curveskel_iterations"] == 2
 
@@ -360,3 +366,96 @@ def test_live_run_to_the_end_equals_execute(make_mesh, mesh_arrays):
     assert sk.energy == pytest.approx(ref.energy)
     live.discard()
     assert "Cylinder.silhouette" not in bpy.data.objects
+
+
+class _WindowManager:
+    """The window manager as the modal mode sees it. Timers never fire in background mode, so
+    the test delivers the TIMER events itself; everything else is the real Blender."""
+
+    def __init__(self, real):
+        self.real, self.timers, self.handlers = real, [], []
+
+    def event_timer_add(self, step, window=None):
+        self.timers.append(object())
+        return self.timers[-1]
+
+    def event_timer_remove(self, timer):
+        self.timers.remove(timer)
+
+    def modal_handler_add(self, op):
+        self.handlers.append(op)
+        return True
+
+    def __getattr__(self, name):          # progress_begin/update/end: the real ones
+        return getattr(self.real, name)
+
+
+class _Context:
+    def __init__(self):
+        self.window_manager = _WindowManager(bpy.context.window_manager)
+        self.window = bpy.context.window
+        self.area = None
+
+    def __getattr__(self, name):
+        return getattr(bpy.context, name)
+
+
+def _modal_operator(**props):
+    """The operator's own methods on a plain object holding its properties (Blender cannot
+    create an operator instance outside bpy.ops)."""
+    import types
+
+    from curveskel_addon.ops_generate import CURVESKEL_OT_generate
+    from curveskel_addon.properties import settings_dict
+
+    op = types.SimpleNamespace(**{**settings_dict(bpy.context.scene.curveskel), **props}, reports=[])
+    op.report = lambda kind, msg: op.reports.append((set(kind), msg))
+    for name in ("_modal_start", "modal", "_modal_end", "_modal_cleanup", "_status", "_checked_source",
+                 "_finish"):
+        setattr(op, name, types.MethodType(getattr(CURVESKEL_OT_generate, name), op))
+    return op
+
+
+def _event(kind, value='NOTHING'):
+    import types
+
+    return types.SimpleNamespace(type=kind, value=value)
+
+
+def test_modal_mode_watch_then_escape(make_mesh):
+    ob = make_mesh("Cylinder", *capsule())
+    ctx, op = _Context(), _modal_operator(interactive=True, update_every=1)
+    assert op._modal_start(ctx) == {'RUNNING_MODAL'}
+    assert ctx.window_manager.handlers == [op] and len(ctx.window_manager.timers) == 1
+    sil = results.find_result("Cylinder")["silhouette"]
+    first = _silhouette_arrays(sil)[0].copy()
+    assert op.modal(ctx, _event('MOUSEMOVE')) == {'PASS_THROUGH'}      # the view stays usable
+    for _ in range(3):
+        assert op.modal(ctx, _event('TIMER')) == {'RUNNING_MODAL'}
+    assert not np.allclose(_silhouette_arrays(sil)[0], first)        # the silhouette moved
+    assert op.modal(ctx, _event('ESC', 'PRESS')) == {'FINISHED'}
+    assert ctx.window_manager.timers == []
+    found = results.find_result("Cylinder")
+    assert found["silhouette"] == sil and found["armature"] is not None
+    assert found["armature"]["curveskel_stopped"] and found["armature"]["curveskel_iterations"] == 2
+    assert bpy.context.view_layer.objects.active == ob
+    assert any("stopped after 2 iterations" in msg for _, msg in op.reports)
+
+
+def test_modal_mode_runs_to_the_end_like_execute(make_mesh):
+    ob = make_mesh("Cylinder", *capsule())
+    bpy.ops.curveskel.generate()
+    expected = results.figures(results.find_result("Cylinder")["armature"])
+    ctx, op = _Context(), _modal_operator(interactive=True, update_every=4)
+    assert op._modal_start(ctx) == {'RUNNING_MODAL'}
+    for _ in range(1000):
+        if op.modal(ctx, _event('TIMER')) == {'FINISHED'}:
+            break
+    found = results.find_result(ob.name)
+    figs = results.figures(found["armature"])
+    for key in ("curveskel_n_joints", "curveskel_n_bones", "curveskel_iterations"):
+        assert figs[key] == expected[key]
+    assert figs["curveskel_E"] == pytest.approx(expected["curveskel_E"], rel=1e-9)
+    assert not found["armature"]["curveskel_stopped"]
+    names = sorted(o.name for o in bpy.data.objects)
+    assert names == ["Cylinder", "Cylinder.silhouette", "Cylinder.skeleton"]

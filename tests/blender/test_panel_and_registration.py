@@ -6,12 +6,18 @@ from pathlib import Path
 
 import bpy
 import pytest
+from meshes import capsule
 
 import curveskel_addon
 from curveskel_addon import panel, registration, results
 from curveskel_addon.core import SkeletonParams
-from curveskel_addon.properties import ADVANCED_NAMES, OPTION_NAMES, PARAM_NAMES, settings_dict, skeleton_params
-from meshes import capsule
+from curveskel_addon.properties import (
+    ADVANCED_NAMES,
+    OPTION_NAMES,
+    PARAM_NAMES,
+    settings_dict,
+    skeleton_params,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 CLASS_NAMES = [cls.__name__ for cls in registration.CLASSES]
@@ -68,6 +74,7 @@ def test_settings_defaults_match_the_core():
 def test_panel_settings_reach_the_operator(make_mesh):
     """What the Generate button does: copy the scene settings into the operator's properties."""
     ob = make_mesh("Cylinder", *capsule())
+    assert bpy.context.view_layer.objects.active == ob
     s = bpy.context.scene.curveskel
     s.spacing, s.max_iterations, s.make_silhouette = 0.08, 5, False
     assert bpy.ops.curveskel.generate(**settings_dict(s)) == {'FINISHED'}
@@ -105,7 +112,7 @@ def test_result_buttons(make_mesh):
 
 def test_figures_read_the_same_after_save_and_reload(make_mesh, tmp_path):
     """Custom properties survive a .blend round trip (plain ID properties, read with .get)."""
-    ob = make_mesh("Cylinder", *capsule())
+    make_mesh("Cylinder", *capsule())
     bpy.ops.curveskel.generate()
     figs = results.figures(results.find_result("Cylinder")["armature"])
     path = tmp_path / "r.blend"
@@ -180,16 +187,19 @@ def _draw(panel_cls, context):
 
 
 def test_panels_draw_parameters_button_and_figures(make_mesh):
-    ob = make_mesh("Cylinder", *capsule())
+    make_mesh("Cylinder", *capsule())
     log = _draw(panel.CURVESKEL_PT_main, bpy.context)
     assert ("operator", "curveskel.generate") in log
-    assert {k for _, k, *_ in (e for e in log if e[0] == "opset")} == set(settings_dict(bpy.context.scene.curveskel))
+    opset = {e[1] for e in log if e[0] == "opset"}
+    assert opset == set(settings_dict(bpy.context.scene.curveskel))
     assert {e[1] for e in log if e[0] == "prop"} >= set(PARAM_NAMES)
-    assert {e[1] for e in _draw(panel.CURVESKEL_PT_advanced, bpy.context) if e[0] == "prop"} == set(ADVANCED_NAMES)
+    advanced = _draw(panel.CURVESKEL_PT_advanced, bpy.context)
+    assert {e[1] for e in advanced if e[0] == "prop"} == set(ADVANCED_NAMES)
     assert ("label", "No result for the active object") in _draw(panel.CURVESKEL_PT_result, bpy.context)
     bpy.ops.curveskel.generate()
     log = _draw(panel.CURVESKEL_PT_result, bpy.context)
     labels = [e[1] for e in log if e[0] == "label"]
     arm = results.find_result("Cylinder")["armature"]
     assert "Cylinder" in labels and "Bones" in labels and str(arm["curveskel_n_bones"]) in labels
-    assert ("operator", "curveskel.select_armature") in log and ("operator", "curveskel.toggle_silhouette") in log
+    assert ("operator", "curveskel.select_armature") in log
+    assert ("operator", "curveskel.toggle_silhouette") in log

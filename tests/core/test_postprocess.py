@@ -245,7 +245,8 @@ def solved(V, F, **kw):
     from curveskel_addon.core.pipeline import SkeletonRun
     from curveskel_addon.core.solvers import solve_steps
 
-    p = SkeletonParams(**kw)
+    # The state *before* post-processing: the defaults would already prune/merge/choose.
+    p = SkeletonParams(**{**dict(prune=0.0, simplify=0.0, candidates=1), **kw})
     run = SkeletonRun(V, F, p)
     run.result()
     st = run._state

@@ -257,3 +257,12 @@ def test_pruned_minimum_is_exact_for_far_points():
     ra, rb = sk.joints[sk.bones[:, 0], 3], sk.joints[sk.bones[:, 1], 3]
     full = sd_round_cone(P[:, None], a[None], b[None], ra[None], rb[None]).min(axis=1)
     assert np.allclose(silhouette_sdf(P, sk.joints, sk.bones), full, rtol=0, atol=1e-12)
+
+
+def test_topology_merges_duplicate_positions():
+    V, F = torus(n_major=32, n_minor=12)
+    V2 = np.concatenate([V, V])                  # a "triangle soup"-like split: half the faces
+    F2 = F.copy()                                # use the second copy of every vertex
+    F2[::2] += len(V)
+    mt = mesh_topology(V2, F2)
+    assert (mt["mesh_components"], mt["mesh_genus"], mt["mesh_boundaries"]) == (1, 1, 0)

@@ -178,7 +178,8 @@ def test_paper_stops_by_eq30(tolerance):
     assert len(states) - 1 < 10_000
 
 
-def test_paper_negative_radii_are_handled():
+@pytest.mark.parametrize("solver", ["paper", "lm"])
+def test_negative_radii_are_handled(solver):
     # Points on the axis: the best radius is 0 and exact line searches overshoot below it.
     rng = np.random.default_rng(4)
     n = 400
@@ -188,14 +189,30 @@ def test_paper_negative_radii_are_handled():
     t, _ = project_on_bones(P, joints, np.array([[1, 0]]), np.zeros(n, int))
     pr = FitProblem(P, np.ones(n), joints, np.array([[1, 0]]), np.zeros(n, int), t)
     stats = {}
-    states = list(solve_steps(pr, solver="paper", max_iterations=300, tolerance=1e-9, stats=stats))
-    assert stats["flips"] + stats["restricted"] > 0
+    states = list(solve_steps(pr, solver=solver, max_iterations=300, tolerance=1e-9, stats=stats))
+    if solver == "paper":
+        assert stats["flips"] + stats["restricted"] > 0
     E = [s.energy for s in states]
+    assert E[-1] < 1e-3 * E[0]
     assert np.all(np.diff(E) <= 0)
     assert all(np.all(s.joints[:, 3] >= 0) for s in states)
 
 
 # -- Levenberg-Marquardt -------------------------------------------------------------------------
+
+@pytest.mark.parametrize("solver", ["paper", "lm"])
+def test_unused_joint_and_empty_bone(solver):
+    # A joint no bone uses and a bone no vertex maps to: both must stay put, nothing breaks.
+    pr, _ = cylinder_problem(n=2000, noise=0.02, seed=11)
+    J = len(pr.joints)
+    joints = np.vstack([pr.joints, [[5, 5, 5, 1], [6, 6, 6, 1]]])
+    bones = np.vstack([pr.bones, [[J, J + 1]]])                    # bone J -> J+1, no vertices
+    joints = np.vstack([joints, [[9, 9, 9, 2]]])                   # joint J+2, no bone
+    big = FitProblem(pr.points, pr.weights, joints, bones, pr.bone, pr.t)
+    last = solve(big, solver=solver, refit_mapping=True)
+    np.testing.assert_array_equal(last.joints[J:], joints[J:])
+    assert last.energy < 0.1 * energy(big)
+
 
 @pytest.mark.parametrize("seed,noise,weighted", [(0, 0.01, False), (5, 0.03, True), (3, 0.02, False)])
 def test_lm_matches_least_squares(seed, noise, weighted):
