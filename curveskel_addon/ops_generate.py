@@ -158,10 +158,14 @@ class LiveRun:
         update_silhouette(self.silhouette, self.run.current_skeleton())
         return False
 
-    def stop(self):
-        """End the run; the skeleton of lowest energy so far (the solvers never raise E, so in
-        practice the latest iterate, but a stop must never hand back a worse one)."""
+    def stop(self, finished: bool = False):
+        """End the run. A run whose solver finished gets the same final stages as execute
+        (pruning, merging: ``SkeletonRun.result()``); a run stopped with Esc keeps the skeleton
+        of lowest energy so far (the solvers never raise E, so in practice the latest iterate,
+        but a stop must never hand back a worse one)."""
         self._steps.close()
+        if finished and self.state is not None and self.state.done:
+            return self.run.result()
         latest = self.run.current_skeleton()
         if self._best is None or (latest.energy and latest.energy[-1] <= self._best[0]):
             return latest
@@ -280,14 +284,18 @@ class CURVESKEL_OT_generate(GenerateSettings, bpy.types.Operator):
     def _modal_end(self, context, *, stopped: bool):
         self._modal_cleanup(context)
         live = self._live
-        skeleton = live.stop()
+        skeleton = live.stop(finished=not stopped)
         src = bpy.data.objects.get(live.source_name)
         if src is None:
             live.discard()
             self.report({'ERROR'}, f"CurveSkel: the source object '{live.source_name}' is gone")
             return {'CANCELLED'}
         sil = live.silhouette
-        if not self.make_silhouette:
+        # Pruning/merging at the end can change the joint count: the live preview then cannot
+        # be updated in place and a fresh silhouette is built instead.
+        resized = (len(sil.data.vertices) != skeleton.n_joints
+                   or len(sil.data.edges) != skeleton.n_bones)
+        if not self.make_silhouette or resized:
             results.remove_objects([sil])
             sil = None
         return self._finish(context, src, skeleton, self._t0, live=sil, stopped=stopped)

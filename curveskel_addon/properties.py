@@ -62,14 +62,23 @@ class GenerateSettings:
     candidates: IntProperty(name="Candidates", description="First approximations tried (poles and "
                             "spacings); the one of lowest energy is kept", default=_D.candidates,
                             min=1, soft_max=8)
+    smoothness: FloatProperty(name="Smoothness", description="Keep chain joints between their "
+                              "neighbours (Levenberg-Marquardt only; 0 is off)",
+                              default=_D.smoothness, min=0.0, soft_max=1.0, precision=3, step=1)
+    containment: FloatProperty(name="Containment", description="Keep joints and their balls inside "
+                               "the mesh (Levenberg-Marquardt only; 0 is off)",
+                               default=_D.containment, min=0.0, soft_max=100.0, precision=3, step=1)
+    max_fit_points: IntProperty(name="Fit Points", description="Above this many vertices the solver "
+                                "fits an area-weighted random subset of this size (0 uses all)",
+                                default=_D.max_fit_points, min=0, soft_max=500000)
     make_armature: BoolProperty(name="Armature", description="Create an armature from the skeleton",
                                 default=True)
     make_silhouette: BoolProperty(name="Silhouette", description="Create an edge mesh with a Skin "
                                   "modifier showing the joints' radii", default=True)
     silhouette_in_render: BoolProperty(name="Render Silhouette",
                                        description="Show the silhouette in renders", default=False)
-    bind: BoolProperty(name="Bind Mesh", description="Parent the mesh to the armature with "
-                       "vertex weights from the skeleton mapping (adds an Armature modifier)",
+    bind: BoolProperty(name="Bind Mesh", description="Add an Armature modifier and one vertex "
+                       "group per bone, weighted from the skeleton mapping (the mesh is not parented)",
                        default=False)
     interactive: BoolProperty(name="Interactive", description="Watch the optimisation: the "
                               "silhouette updates while it runs, Esc stops it and keeps the skeleton "
@@ -80,7 +89,8 @@ class GenerateSettings:
 
 #: Properties that are parameters of the core: every SkeletonParams field, main ones first.
 PARAM_NAMES = ("spacing", "solver", "max_iterations", "tolerance", "seed")
-ADVANCED_NAMES = ("area_weighted", "refit_mapping", "prune", "simplify", "candidates")
+ADVANCED_NAMES = ("area_weighted", "refit_mapping", "prune", "simplify", "candidates",
+                  "smoothness", "containment", "max_fit_points")
 #: Properties of the Blender side of a run.
 OPTION_NAMES = ("make_armature", "make_silhouette", "silhouette_in_render", "bind", "interactive",
                 "update_every")

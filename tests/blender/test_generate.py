@@ -358,7 +358,7 @@ def test_live_run_to_the_end_equals_execute(make_mesh, mesh_arrays):
     live = LiveRun(bpy.context, ob, SkeletonParams())
     while not live.advance(3):
         pass
-    sk = live.stop()
+    sk = live.stop(finished=True)
     V, F = mesh_arrays(ob)
     ref = skeletonize(V, F, SkeletonParams())
     np.testing.assert_array_equal(sk.bones, ref.bones)

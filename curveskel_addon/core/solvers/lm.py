@@ -53,12 +53,13 @@ least-squares residuals join the data residuals (:class:`_Regulariser`):
 
 * containment, per joint ``j = (x, r)``: ``sqrt(c S) max(0, r - d(x))`` with ``d`` the signed
   distance to the surface, positive inside (unsigned distance to the surface points, vertices and
-  face centroids, from one KD-tree built once per solve; the sign from the outward normals of the
-  nearest points, area-weighted vertex normals and face normals). The ball must lie inside the
+  face centroids, from one KD-tree built once per solve, with normals: area-weighted vertex
+  normals and face normals; ``d`` is smoothed over the nearest points, see
+  :meth:`_Regulariser._containment`). The ball must lie inside the
   mesh. Without it a joint that few vertices map to can run away: a big sphere fits a small
   nearly flat patch, and E keeps falling while the joint leaves the mesh. Linearised at every
-  assembly: gradient ``-sgn (x - p) / |x - p|`` in x (``sgn`` = +1 inside, -1 outside; the
-  inward normal ``-n`` when x is on the surface) and +1 in r.
+  assembly: gradient ``-grad d(x)`` in x (about ``+n``, the outward normal of the nearest
+  surface point, i.e. ``-sgn (x - p) / |x - p|``) and +1 in r.
 * smoothness, per joint of degree 2 with neighbours a, b: ``sqrt(s S) (x_j - (x_a + x_b) / 2)``
   (3 linear residuals): straightens chains, removes hairpins and zig-zags.
 
@@ -191,6 +192,149 @@ class _Sorted:
         return bone, t
 
 
+class _Regulariser:
+    """Containment and smoothness residuals (see the module docstring), built once per solve.
+
+    ``active`` is False when both weights are 0 or there is nothing to regularise; then the
+    solver never calls it.
+    """
+
+    K = 8      # nearest surface points voting on inside/outside
+
+    def __init__(self, problem: FitProblem, joints: np.ndarray, E0: float):
+        cfg = (getattr(problem, "meta", None) or {}).get("regularisation") or {}
+        c = float(cfg.get("containment", 0.0) or 0.0)
+        s = float(cfg.get("smoothness", 0.0) or 0.0)
+        surface = cfg.get("surface")
+        J = len(joints)
+        self.n_joints = J
+        self.kc = self.ks = 0.0
+        self.active = False
+        if J == 0 or not (c > 0 or s > 0) or not E0 > 0:
+            return
+        r = joints[:, 3]
+        pos = r[r > 0]
+        med = float(np.median(pos)) if pos.size else 0.0
+        if not med > 0:
+            ext = np.ptp(problem.points, axis=0) if len(problem.points) else np.ones(3)
+            med = max(float(np.linalg.norm(ext)) * 1e-2, 1e-12)
+        S = E0 / (J * med * med)
+        if c > 0 and surface is not None and len(surface[1]) > 0:
+            V = np.asarray(surface[0], dtype=np.float64)
+            F = np.asarray(surface[1], dtype=np.int64)
+            fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])   # 2 area * normal
+            vn = np.zeros_like(V)
+            for k in range(3):
+                np.add.at(vn, F[:, k], fn)
+            used = np.zeros(len(V), dtype=bool)
+            used[F.ravel()] = True
+            pts = np.concatenate([V[used], V[F].mean(axis=1)])
+            nrm = np.concatenate([vn[used], fn])
+            nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+            self.pts, self.nrm = pts, nrm
+            self.tree = cKDTree(pts)
+            sp2 = self.tree.query(pts, k=2)[0][:, 1]
+            self.h2 = max(float(np.median(sp2)) ** 2, 1e-300)
+            self.kc = c * S
+        if s > 0:
+            bones = np.asarray(problem.bones, dtype=np.int64).reshape(-1, 2)
+            deg = np.bincount(bones.ravel(), minlength=J)
+            mids = np.flatnonzero(deg == 2)
+            if mids.size:
+                nb = [[] for _ in range(J)]
+                for a, b in bones:
+                    nb[a].append(b)
+                    nb[b].append(a)
+                rows, cols, vals = [], [], []
+                for m, j in enumerate(mids):
+                    a, b = nb[j]
+                    for k in range(3):
+                        rows += [3 * m + k] * 3
+                        cols += [4 * j + k, 4 * a + k, 4 * b + k]
+                        vals += [1.0, -0.5, -0.5]
+                self.L = sp.csr_matrix((vals, (rows, cols)), shape=(3 * len(mids), 4 * J))
+                self.ks = s * S
+                self.LtL = (self.ks * (self.L.T @ self.L)).tocsc()
+        self.active = self.kc > 0 or self.ks > 0
+
+    def _containment(self, joints):
+        """Violation ``g = r - d(x)`` (J,) and its gradient (J, 4).
+
+        ``d`` is a smooth signed distance, positive inside: a weighted mean over the K nearest
+        surface points p_i of their plane distances ``-n_i . (x - p_i)``, weights
+        ``1 / (|x - p_i|^2 + h^2)`` (h: the median spacing of the surface points). The plain
+        distance to the point set is a min of cones, whose kinks stalled LM (no damping gave a
+        descent); the planes of neighbouring points nearly agree, so this ``d`` is smooth at the
+        scale of the mesh. Its gradient is exact (weights differentiated too).
+        """
+        x = joints[:, :3]
+        k = min(self.K, len(self.pts))
+        dist, idx = self.tree.query(x, k=k)
+        dist, idx = dist.reshape(len(x), k), idx.reshape(len(x), k)
+        diff = x[:, None, :] - self.pts[idx]                       # (J, k, 3)
+        n = self.nrm[idx]
+        sd = -np.einsum("jki,jki->jk", diff, n)                   # plane distances, + inside
+        w = 1.0 / (dist * dist + self.h2)
+        W = w.sum(axis=1)
+        d = (w * sd).sum(axis=1) / W
+        dw = -2.0 * (w * w)[:, :, None] * diff                     # dw_i/dx
+        grad_d = ((w[:, :, None] * -n).sum(axis=1)
+                  + ((sd - d[:, None])[:, :, None] * dw).sum(axis=1)) / W[:, None]
+        g = joints[:, 3] - d
+        grad = np.empty((len(x), 4))
+        grad[:, :3] = -grad_d
+        grad[:, 3] = 1.0
+        return g, grad
+
+    def value(self, joints) -> float:
+        """R(joints): the regulariser's share of the total objective."""
+        R = 0.0
+        if self.kc > 0:
+            g = np.maximum(self._containment(joints)[0], 0.0)
+            R += self.kc * float(g @ g)
+        if self.ks > 0:
+            v = self.L @ joints.ravel()
+            R += self.ks * float(v @ v)
+        return R
+
+    def add(self, joints, jtr, H):
+        """R, and ``jtr``, ``H`` with the regulariser's Gauss-Newton terms added."""
+        R = 0.0
+        jtr = jtr.copy()
+        z = joints.ravel()
+        self._lin = None
+        if self.kc > 0:
+            g, grad = self._containment(joints)
+            on = np.flatnonzero(g > 0)
+            self._lin = (on, g[on], grad[on])
+            if on.size:
+                R += self.kc * float(g[on] @ g[on])
+                idx = 4 * on[:, None] + np.arange(4)[None, :]          # (m, 4)
+                np.add.at(jtr, idx, self.kc * g[on][:, None] * grad[on])
+                blk = self.kc * grad[on][:, :, None] * grad[on][:, None, :]
+                rr = np.broadcast_to(idx[:, :, None], blk.shape).ravel()
+                cc = np.broadcast_to(idx[:, None, :], blk.shape).ravel()
+                H = H + sp.csc_matrix((blk.ravel(), (rr, cc)), shape=H.shape)
+        if self.ks > 0:
+            v = self.L @ z
+            R += self.ks * float(v @ v)
+            jtr += self.ks * (self.L.T @ v)
+            H = H + self.LtL
+        return R, jtr, H.tocsc()
+
+    def line_quadratic(self, joints, h) -> np.ndarray:
+        """c0..c4 (c3 = c4 = 0) of the linearised R(joints + lam h) (from the last ``add``)."""
+        q = np.zeros(5)
+        if self.kc > 0 and self._lin is not None and self._lin[0].size:
+            on, g, grad = self._lin
+            gh = np.einsum("ji,ji->j", grad, h[on])
+            q[:3] += self.kc * np.array([g @ g, 2.0 * g @ gh, gh @ gh])
+        if self.ks > 0:
+            v0, v1 = self.L @ joints.ravel(), self.L @ h.ravel()
+            q[:3] += self.ks * np.array([v0 @ v0, 2.0 * v0 @ v1, v1 @ v1])
+        return q
+
+
 def lm_steps(problem: FitProblem, *, max_iterations: int = 100, tolerance: float = 1e-3,
              refit_mapping: bool = False, mu0: float = 1e-3, mu_max: float = 1e12,
              line_search: bool = True, stats: dict | None = None) -> Iterator[SolverState]:
@@ -220,7 +364,8 @@ def lm_steps(problem: FitProblem, *, max_iterations: int = 100, tolerance: float
     ------
     SolverState
         Iteration 0 (E0), then one per accepted step; the last has ``done=True``.
-        E never increases.
+        ``energy`` is the data term E; E never increases without regularisation (with it the
+        total ``E + R`` never increases, see the module docstring).
 
     Examples
     --------
@@ -238,6 +383,12 @@ def lm_steps(problem: FitProblem, *, max_iterations: int = 100, tolerance: float
     ne = NormalEquations(srt.pr)
     E, jtr, H = ne.assemble(joints)
     E0 = E
+    reg = _Regulariser(problem, joints, E0)
+    R = 0.0
+    if reg.active:
+        R, jtr, H = reg.add(joints, jtr, H)
+    Ft = E + R                           # the objective minimised: data E plus regulariser R
+    F0 = Ft
     done = max_iterations <= 0 or not E > 0 or J == 0
     yield SolverState(0, joints, bone, t, E, done)
     if done:
@@ -254,18 +405,22 @@ def lm_steps(problem: FitProblem, *, max_iterations: int = 100, tolerance: float
             # LM step), so the step is never worse than LM's and can cross ridges it cannot.
             A, B, C = line_residuals(srt.pr, -h.reshape(J, 4), joints, ne.terms)
             c = quartic_from_residuals(srt.pr.weights, A, B, C)
+            if reg.active:                # plus the regulariser's (linearised) quadratic
+                c = c + reg.line_quadratic(joints, h.reshape(J, 4))
             lam = minimize_quartic(c) if line_search else 1.0
             new = joints + lam * h.reshape(J, 4)
             if np.any(new[:, 3] < 0):
-                new, lam = _nonnegative_radii(srt.pr, joints, h.reshape(J, 4), c, lam, new, E)
+                new, lam = _nonnegative_radii(srt.pr, joints, h.reshape(J, 4), c, lam, new, Ft,
+                                              reg if reg.active else None)
                 e_new = sigma_terms(srt.pr, new)[2]
             else:
                 e_new = A + lam * (B + lam * C)          # exact: e is quadratic along the line
             E_new = float(np.dot(srt.pr.weights * e_new, e_new))
+            R_new = reg.value(new) if reg.active else 0.0
             # Nielsen's update from the quality of the Gauss-Newton model at lam = 1.
             pred = float(-h @ jtr + mu * (h * D) @ h)     # model decrease of E = |r|^2 at lam = 1
-            gain = (E - float(np.sum(c))) / pred if pred > 0 else -1.0
-            if E_new < E:
+            gain = (Ft - float(np.sum(c))) / pred if pred > 0 else -1.0
+            if E_new + R_new < Ft:
                 stats["line_search"] += int(abs(lam - 1.0) > 1e-3)
                 if gain > 0:
                     mu *= max(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3)
@@ -280,8 +435,8 @@ def lm_steps(problem: FitProblem, *, max_iterations: int = 100, tolerance: float
         if not accepted:
             yield SolverState(k, joints, bone, t, E, True)
             return
-        E_prev = E
-        joints, E = new, E_new
+        F_prev = Ft
+        joints, E, R = new, E_new, R_new
         if refit_mapping:
             cur = srt.pr
             bone_s, t_s, e, changed = _refit(FitProblem(cur.points, cur.weights, joints, cur.bones,
@@ -292,14 +447,17 @@ def lm_steps(problem: FitProblem, *, max_iterations: int = 100, tolerance: float
                 srt = srt.resorted(problem, bone_s, t_s)
                 bone, t = srt.mapping()
                 ne = NormalEquations(srt.pr)
-        done = k == max_iterations or E <= ftol * ftol * E0      # max, or an exact fit
-        if not done and (E_prev - E) < ftol * E_prev:
+        Ft = E + R                        # the re-fit lowers E only; R does not see the mapping
+        done = k == max_iterations or Ft <= ftol * ftol * F0      # max, or an exact fit
+        if not done and (F_prev - Ft) < ftol * F_prev:
             # Small decrease: stop only if the gradient is small too, measured as the decrease a
             # Newton step on the diagonal of J^T J would promise, jtr^T diag(J^T J)^-1 jtr (scale
             # invariant; a heavily damped step being small proves nothing, and the undamped
             # Gauss-Newton step is unbounded along the nearly flat directions of E).
             _, jtr, H = ne.assemble(joints)
-            done = float(jtr @ (jtr / _damping_scale(H))) < ftol * E
+            if reg.active:
+                _, jtr, H = reg.add(joints, jtr, H)
+            done = float(jtr @ (jtr / _damping_scale(H))) < ftol * Ft
             fresh = True
         else:
             fresh = False
@@ -308,15 +466,18 @@ def lm_steps(problem: FitProblem, *, max_iterations: int = 100, tolerance: float
             return
         if not fresh:
             _, jtr, H = ne.assemble(joints)
+            if reg.active:
+                _, jtr, H = reg.add(joints, jtr, H)
 
 
-def _nonnegative_radii(pr, joints, h, c, lam, new, E):
+def _nonnegative_radii(pr, joints, h, c, lam, new, E, reg=None):
     """Radii went negative along the step: flip them (r enters squared, as in the paper) if that
-    keeps E below ``E``; otherwise restrict ``lam`` to where every radius stays >= 0."""
+    keeps the objective (E, plus R when ``reg`` is given) below ``E``; otherwise restrict ``lam``
+    to where every radius stays >= 0."""
     flipped = new.copy()
     flipped[:, 3] = np.abs(flipped[:, 3])
     e = sigma_terms(pr, flipped)[2]
-    if float(np.dot(pr.weights * e, e)) < E:
+    if float(np.dot(pr.weights * e, e)) + (reg.value(flipped) if reg is not None else 0.0) < E:
         return flipped, lam
     lo, hi = radius_interval(joints[:, 3], -h[:, 3])
     lam = minimize_quartic_on(c, lo, hi)
