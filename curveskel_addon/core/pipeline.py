@@ -14,6 +14,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .candidates import best_of_candidates
+from .collapse import collapse_short_bones
 from .errors import CurveSkelError
 from .mesh_graph import components
 from .mapping import closest_on_bones
@@ -30,6 +31,9 @@ from .vertex_area import vertex_areas
 __all__ = ["skeletonize", "SkeletonRun"]
 
 Progress = Callable[[str, float], None]
+
+#: Bones not longer than this fraction of the bounding-box diagonal are contracted at the end.
+COLLAPSE_TOL = 1e-4   # 0.01 % of the size: invisible, and the solver leaves such pairs only ~1e-6 apart
 
 
 class SkeletonRun:
@@ -57,6 +61,7 @@ class SkeletonRun:
         self.energy: list[float] = []
         self._state: SolverState | None = None
         self.postprocess_log: dict | None = None
+        self.collapsed: int | None = None
 
     # -- stages --------------------------------------------------------------------------------
     @contextmanager
@@ -172,7 +177,23 @@ class SkeletonRun:
             for _ in self.steps():
                 pass
         self._postprocess()
+        self._collapse()
         return self.current_skeleton()
+
+    def _collapse(self) -> None:
+        """Contract zero-length bones (joints the optimum put on one point), once."""
+        st = self._state
+        if st is None or self.collapsed is not None:
+            return
+        V = self.mesh.V
+        tol = COLLAPSE_TOL * float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+        J0 = len(st.joints)
+        joints, bones, bone, t = collapse_short_bones(st.joints, self.problem.bones, st.bone, st.t, tol)
+        self.collapsed = J0 - len(joints)
+        if self.collapsed:
+            self.problem = FitProblem(self.problem.points, self.problem.weights, joints, bones,
+                                      bone, t, self.problem.meta)
+            self._state = SolverState(st.iteration, joints, bone, t, st.energy, done=True)
 
     def _postprocess(self) -> None:
         """Prune noise branches and merge straight-chain joints (``params.prune``/``simplify``),
@@ -221,6 +242,8 @@ class SkeletonRun:
                                   else len(self.mesh.V))}
         if self.postprocess_log is not None:
             meta["postprocess"] = self.postprocess_log
+        if self.collapsed:
+            meta["collapsed_joints"] = int(self.collapsed)
         return meta
 
 
