@@ -31,8 +31,8 @@ def collapse_short_bones(joints, bones, bone, t, tol: float):
     bones : (B, 2) int
     bone, t : (n,) int, (n,) float
         Skeleton mapping (eq. 19 convention, t = 1 at a bone's first joint).
-    tol : float
-        Length at or below which a bone is contracted.
+    tol : float or (B,) float
+        Length at or below which a bone is contracted (one value per bone allowed).
 
     Returns
     -------

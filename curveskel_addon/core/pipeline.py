@@ -33,6 +33,7 @@ __all__ = ["skeletonize", "SkeletonRun"]
 Progress = Callable[[str, float], None]
 
 #: Bones not longer than this fraction of the bounding-box diagonal are contracted at the end.
+COLLAPSE_RADIUS = 0.02   # ... or than this fraction of the smaller end radius
 COLLAPSE_TOL = 1e-4   # 0.01 % of the size: invisible, and the solver leaves such pairs only ~1e-6 apart
 
 
@@ -186,7 +187,10 @@ class SkeletonRun:
         if st is None or self.collapsed is not None:
             return
         V = self.mesh.V
-        tol = COLLAPSE_TOL * float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+        B = self.problem.bones
+        # Per bone: invisible at the mesh's scale, or hidden inside its own end balls.
+        tol = np.maximum(COLLAPSE_TOL * float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))),
+                         COLLAPSE_RADIUS * np.minimum(st.joints[B[:, 0], 3], st.joints[B[:, 1], 3]))
         J0 = len(st.joints)
         joints, bones, bone, t = collapse_short_bones(st.joints, self.problem.bones, st.bone, st.t, tol)
         self.collapsed = J0 - len(joints)
