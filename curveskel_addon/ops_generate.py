@@ -21,6 +21,7 @@ from .properties import (
     OPTION_NAMES,
     PARAM_NAMES,
     GenerateSettings,
+    draw_settings,
     settings_dict,
     skeleton_params,
 )
@@ -198,22 +199,7 @@ class CURVESKEL_OT_generate(GenerateSettings, bpy.types.Operator):
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
-        col = layout.column()
-        for name in PARAM_NAMES:
-            col.prop(self, name)
-        col = layout.column(heading="Advanced")
-        for name in ADVANCED_NAMES:
-            col.prop(self, name)
-        col = layout.column(heading="Create")
-        col.prop(self, "make_armature")
-        col.prop(self, "make_silhouette")
-        col.prop(self, "silhouette_in_render")
-        col.prop(self, "bind")
-        col = layout.column(heading="Watch")
-        col.prop(self, "interactive")
-        sub = col.column()
-        sub.active = self.interactive
-        sub.prop(self, "update_every")
+        draw_settings(layout, self, advanced=True)
 
     # -- entry points ---------------------------------------------------------------------------
     def invoke(self, context, event):

@@ -10,7 +10,7 @@ import bpy
 
 from . import results
 from .preferences import get_preferences
-from .properties import ADVANCED_NAMES, OPTION_NAMES, PARAM_NAMES, settings_dict
+from .properties import ADVANCED_NAMES, OPTION_NAMES, PARAM_NAMES, draw_settings, settings_dict
 
 __all__ = ["CURVESKEL_PT_main", "CURVESKEL_PT_advanced", "CURVESKEL_PT_result", "CLASSES"]
 
@@ -102,19 +102,7 @@ class CURVESKEL_PT_main(bpy.types.Panel):
         layout.use_property_split = True
         layout.use_property_decorate = False
         settings = context.scene.curveskel
-        col = layout.column()
-        for name in PARAM_NAMES:
-            col.prop(settings, name)
-        col = layout.column(heading="Create")
-        col.prop(settings, "make_armature")
-        col.prop(settings, "make_silhouette")
-        col.prop(settings, "silhouette_in_render")
-        col.prop(settings, "bind")
-        col = layout.column(heading="Watch")
-        col.prop(settings, "interactive")
-        sub = col.column()
-        sub.active = settings.interactive
-        sub.prop(settings, "update_every")
+        draw_settings(layout, settings, advanced=False)
         row = layout.row()
         row.scale_y = 1.5
         op = row.operator("curveskel.generate", text="Generate", icon='ARMATURE_DATA')

@@ -120,3 +120,24 @@ class CurveSkelSceneSettings(GenerateSettings, bpy.types.PropertyGroup):
 
 
 CLASSES = (CurveSkelSceneSettings,)
+
+
+def draw_settings(layout, data, *, advanced: bool) -> None:
+    """The parameters and options of a run, drawn for ``data`` (the operator in Adjust Last
+    Operation, or the scene's settings in the sidebar); ``advanced`` adds the other parameters
+    (the sidebar shows them in a sub-panel instead)."""
+    col = layout.column()
+    for name in PARAM_NAMES:
+        col.prop(data, name)
+    if advanced:
+        col = layout.column(heading="Advanced")
+        for name in ADVANCED_NAMES:
+            col.prop(data, name)
+    col = layout.column(heading="Create")
+    for name in ("make_armature", "make_silhouette", "silhouette_in_render", "bind"):
+        col.prop(data, name)
+    col = layout.column(heading="Watch")
+    col.prop(data, "interactive")
+    sub = col.column()
+    sub.active = data.interactive
+    sub.prop(data, "update_every")
