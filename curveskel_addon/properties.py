@@ -68,6 +68,11 @@ class GenerateSettings:
     containment: FloatProperty(name="Containment", description="Keep joints and their balls inside "
                                "the mesh (Levenberg-Marquardt only; 0 is off)",
                                default=_D.containment, min=0.0, soft_max=100.0, precision=3, step=1)
+    refine: IntProperty(name="Refine Rounds", description="Rounds of splitting the bones that "
+                        "leave the mesh and re-solving; leaf joints still outside are then pulled "
+                        "in (0 is off)", default=_D.refine, min=0, soft_max=10)
+    max_joints: IntProperty(name="Max Joints", description="No bone is split by the refinement "
+                            "beyond this many joints", default=_D.max_joints, min=2, soft_max=1000)
     max_fit_points: IntProperty(name="Fit Points", description="Above this many vertices the solver "
                                 "fits an area-weighted random subset of this size (0 uses all)",
                                 default=_D.max_fit_points, min=0, soft_max=500000)
@@ -90,7 +95,7 @@ class GenerateSettings:
 #: Properties that are parameters of the core: every SkeletonParams field, main ones first.
 PARAM_NAMES = ("spacing", "solver", "max_iterations", "tolerance", "seed")
 ADVANCED_NAMES = ("area_weighted", "refit_mapping", "prune", "simplify", "candidates",
-                  "smoothness", "containment", "max_fit_points")
+                  "smoothness", "containment", "refine", "max_joints", "max_fit_points")
 #: Properties of the Blender side of a run.
 OPTION_NAMES = ("make_armature", "make_silhouette", "silhouette_in_render", "bind", "interactive",
                 "update_every")

@@ -43,11 +43,17 @@ class SkeletonParams:
         Weight of a Laplacian term keeping chain joints between their neighbours ("lm" only;
         0 disables). Relative to E; see :mod:`.solvers.lm`.
     containment : float
-        Weight of a term keeping each joint inside the mesh with its ball inside the surface
-        ("lm" only; 0 disables). Stops joints running away while E still falls. Relative to E
+        Weight of a term keeping each joint, and points along each bone, inside the mesh with
+        their balls inside the surface ("lm" only; 0 disables). Stops joints running away while E still falls. Relative to E
         (1: a violation of one median radius at every joint costs E0); default 1.0, measured
         better than 0 on all six reference meshes (bone points inside the mesh and
         reconstruction distance); see :mod:`.solvers.lm`.
+    refine : int
+        Rounds of splitting the bones that leave the mesh (tested exactly at points along
+        every bone) and re-solving; then leaf joints still outside are pulled in along their
+        bone (0 disables). See :mod:`.refine`.
+    max_joints : int
+        Joint budget of the refinement: no bone is split beyond this many joints.
     max_fit_points : int
         Above this many vertices the solver fits an area-weighted random subset of this size
         (a quadrature of the same surface integral) and maps every vertex at the end.
@@ -67,13 +73,15 @@ class SkeletonParams:
     smoothness: float = 0.0
     containment: float = 1.0
     max_fit_points: int = 60000
+    refine: int = 3
+    max_joints: int = 300
 
     @classmethod
     def paper(cls, **overrides) -> "SkeletonParams":
         """The method exactly as the paper describes it (vertex sum, fixed sigma, gradient descent)."""
         base = dict(solver="paper", area_weighted=False, refit_mapping=False, prune=0.0,
                     simplify=0.0, candidates=1, max_iterations=1000, smoothness=0.0,
-                    containment=0.0, max_fit_points=0)
+                    containment=0.0, max_fit_points=0, refine=0)
         base.update(overrides)
         return cls(**base)
 

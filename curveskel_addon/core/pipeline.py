@@ -15,6 +15,7 @@ from scipy.spatial import cKDTree
 
 from .candidates import best_of_candidates
 from .collapse import collapse_short_bones
+from .energy import energy
 from .errors import CurveSkelError
 from .mesh_graph import components
 from .mapping import closest_on_bones
@@ -23,6 +24,7 @@ from .params import SOLVERS, SkeletonParams
 from .postprocess import postprocess
 from .problem import FitProblem, SolverState
 from .reeb import first_approximation
+from .refine import refine
 from .refit import bone_neighbours
 from .skeleton import Skeleton
 from .solvers import solve_steps
@@ -34,6 +36,8 @@ Progress = Callable[[str, float], None]
 
 #: Bones not longer than this fraction of the bounding-box diagonal are contracted at the end.
 COLLAPSE_RADIUS = 0.02   # ... or than this fraction of the smaller end radius
+#: Solver iterations after each refinement round (the split is local: the rest is converged).
+REFINE_ITERATIONS = 20
 COLLAPSE_TOL = 1e-4   # 0.01 % of the size: invisible, and the solver leaves such pairs only ~1e-6 apart
 
 
@@ -63,6 +67,7 @@ class SkeletonRun:
         self._state: SolverState | None = None
         self.postprocess_log: dict | None = None
         self.collapsed: int | None = None
+        self.refine_log: dict | None = None
 
     # -- stages --------------------------------------------------------------------------------
     @contextmanager
@@ -178,6 +183,7 @@ class SkeletonRun:
             for _ in self.steps():
                 pass
         self._postprocess()
+        self._refine()
         self._collapse()
         return self.current_skeleton()
 
@@ -215,10 +221,26 @@ class SkeletonRun:
         self._state = SolverState(st.iteration, out.joints, out.bone, out.t,
                                   self.postprocess_log["energy_out"], done=True)
 
-    def _solve(self, pr: FitProblem) -> FitProblem:
+    def _refine(self) -> None:
+        """Split bones that leave the mesh and re-solve (``params.refine`` rounds), once."""
+        p, st = self.params, self._state
+        if self.refine_log is not None or p.refine <= 0 or st is None:
+            return
+        pr = self.problem.copy()
+        pr.joints, pr.bone, pr.t = st.joints, st.bone, st.t
+        with self._timed("refine"):
+            out, self.refine_log = refine(pr, self.mesh.V, self.mesh.F,
+                                          lambda q: self._solve(q, REFINE_ITERATIONS),
+                                          max_joints=p.max_joints, rounds=p.refine)
+        self.problem = FitProblem(out.points, out.weights, out.joints, out.bones, out.bone, out.t,
+                                  dict(pr.meta))
+        self._state = SolverState(st.iteration, out.joints, out.bone, out.t, energy(out), done=True)
+
+    def _solve(self, pr: FitProblem, max_iterations: int | None = None) -> FitProblem:
         """Re-optimise ``pr`` with the run's solver settings (used after pruning/merging)."""
         p, last = self.params, None
-        for last in solve_steps(pr, solver=p.solver, max_iterations=p.max_iterations,
+        its = p.max_iterations if max_iterations is None else min(max_iterations, p.max_iterations)
+        for last in solve_steps(pr, solver=p.solver, max_iterations=its,
                                 tolerance=p.tolerance, refit_mapping=p.refit_mapping):
             pass
         out = pr.copy()
@@ -246,6 +268,8 @@ class SkeletonRun:
                                   else len(self.mesh.V))}
         if self.postprocess_log is not None:
             meta["postprocess"] = self.postprocess_log
+        if self.refine_log is not None:
+            meta["refine"] = self.refine_log
         if self.collapsed:
             meta["collapsed_joints"] = int(self.collapsed)
         return meta

@@ -68,7 +68,7 @@ from .mesh_graph import adjacency
 from .vertex_area import vertex_areas
 
 __all__ = ["quality", "sd_round_cone", "silhouette_sdf", "point_triangle_distance",
-           "mesh_distance", "winding_number", "sample_surface", "sample_silhouette_boundary", "inside_mesh",
+           "mesh_distance", "winding_number", "sample_surface", "sample_silhouette_boundary", "inside_mesh", "InsideTest",
            "bone_points", "closest_mapping", "energy_measures", "skeleton_topology",
            "mesh_topology"]
 
@@ -499,71 +499,116 @@ def bone_points(joints, bones, per_bone=10):
 # ---------------------------------------------------------------------------------------------
 # Inside / outside
 # ---------------------------------------------------------------------------------------------
-def _ray_parity(P, V, F, R):
-    """Parity of crossings of the ray from each point along +x after rotating by R."""
-    Vr = V @ R.T
-    Pr = P @ R.T
-    T = Vr[F]                                      # (m, 3, 3)
-    yz = T[:, :, 1:]
-    lo = yz.min(axis=1)
-    hi = yz.max(axis=1)
-    glo = Vr[:, 1:].min(axis=0)
-    ghi = Vr[:, 1:].max(axis=0)
-    G = int(np.clip(np.sqrt(len(F)), 1, 1024))
-    cell = np.maximum((ghi - glo) / G, 1e-300)
-    i0 = np.clip(((lo - glo) / cell).astype(np.int64), 0, G - 1)
-    i1 = np.clip(((hi - glo) / cell).astype(np.int64), 0, G - 1)
-    ny = i1[:, 0] - i0[:, 0] + 1
-    nz = i1[:, 1] - i0[:, 1] + 1
-    cnt = ny * nz
-    tri = np.repeat(np.arange(len(F)), cnt)
-    k = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-    cy = i0[tri, 0] + k // nz[tri]
-    cz = i0[tri, 1] + k % nz[tri]
-    cid = cy * G + cz
-    order = np.argsort(cid, kind="stable")
-    tri_sorted = tri[order]
-    starts = np.concatenate([[0], np.cumsum(np.bincount(cid, minlength=G * G))])
-    parity = np.zeros(len(P), np.int64)
-    pin = np.all((Pr[:, 1:] >= glo) & (Pr[:, 1:] <= ghi), axis=1)
-    pids = np.flatnonzero(pin)
-    pc = np.clip(((Pr[pids, 1:] - glo) / cell).astype(np.int64), 0, G - 1)
-    pcell = pc[:, 0] * G + pc[:, 1]
-    n_per = starts[pcell + 1] - starts[pcell]
-    step = _CHUNK
-    # expand (point, triangle) pairs in chunks of points
-    cum = np.cumsum(n_per)
-    s = 0
-    while s < len(pids):
-        e = int(np.searchsorted(cum, (cum[s - 1] if s else 0) + step, side="right"))
-        e = max(e, s + 1)
-        sel = np.arange(s, min(e, len(pids)))
-        npp = n_per[sel]
-        pp = np.repeat(pids[sel], npp)
-        off = np.arange(npp.sum()) - np.repeat(np.cumsum(npp) - npp, npp)
-        tt = tri_sorted[np.repeat(starts[pcell[sel]], npp) + off]
-        t = T[tt]
-        py, pz = Pr[pp, 1], Pr[pp, 2]
-        y, z = t[:, :, 1], t[:, :, 2]
-        # edge functions of (py, pz) against the three edges in the yz-plane
-        w0 = (y[:, 1] - py) * (z[:, 2] - pz) - (y[:, 2] - py) * (z[:, 1] - pz)
-        w1 = (y[:, 2] - py) * (z[:, 0] - pz) - (y[:, 0] - py) * (z[:, 2] - pz)
-        w2 = (y[:, 0] - py) * (z[:, 1] - pz) - (y[:, 1] - py) * (z[:, 0] - pz)
-        hit = ((w0 > 0) & (w1 > 0) & (w2 > 0)) | ((w0 < 0) & (w1 < 0) & (w2 < 0))
-        ws = w0 + w1 + w2
-        with np.errstate(divide="ignore", invalid="ignore"):
-            xh = (w0 * t[:, 0, 0] + w1 * t[:, 1, 0] + w2 * t[:, 2, 0]) / ws
-        hit &= xh > Pr[pp, 0]
-        parity += np.bincount(pp[hit], minlength=len(P))
-        s = int(sel[-1]) + 1
-    return parity % 2
+class _RayGrid:
+    """Triangles rotated by ``R`` and bucketed in a 2D grid orthogonal to the ray (+x after the
+    rotation); built once, then queried for any number of points."""
+
+    def __init__(self, V, F, R):
+        self.R = R
+        Vr = V @ R.T
+        self.T = T = Vr[F]                             # (m, 3, 3)
+        yz = T[:, :, 1:]
+        lo = yz.min(axis=1)
+        hi = yz.max(axis=1)
+        self.glo = glo = Vr[:, 1:].min(axis=0)
+        self.ghi = Vr[:, 1:].max(axis=0)
+        self.G = G = int(np.clip(np.sqrt(len(F)), 1, 1024))
+        self.cell = cell = np.maximum((self.ghi - glo) / G, 1e-300)
+        i0 = np.clip(((lo - glo) / cell).astype(np.int64), 0, G - 1)
+        i1 = np.clip(((hi - glo) / cell).astype(np.int64), 0, G - 1)
+        ny = i1[:, 0] - i0[:, 0] + 1
+        nz = i1[:, 1] - i0[:, 1] + 1
+        cnt = ny * nz
+        tri = np.repeat(np.arange(len(F)), cnt)
+        k = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        cy = i0[tri, 0] + k // nz[tri]
+        cz = i0[tri, 1] + k % nz[tri]
+        cid = cy * G + cz
+        self.tri_sorted = tri[np.argsort(cid, kind="stable")]
+        self.starts = np.concatenate([[0], np.cumsum(np.bincount(cid, minlength=G * G))])
+
+    def parity(self, P):
+        """Parity of crossings of the ray from each point (n, 3) along the grid's direction."""
+        T, G, glo, ghi, cell = self.T, self.G, self.glo, self.ghi, self.cell
+        starts, tri_sorted = self.starts, self.tri_sorted
+        Pr = P @ self.R.T
+        parity = np.zeros(len(P), np.int64)
+        pin = np.all((Pr[:, 1:] >= glo) & (Pr[:, 1:] <= ghi), axis=1)
+        pids = np.flatnonzero(pin)
+        pc = np.clip(((Pr[pids, 1:] - glo) / cell).astype(np.int64), 0, G - 1)
+        pcell = pc[:, 0] * G + pc[:, 1]
+        n_per = starts[pcell + 1] - starts[pcell]
+        step = _CHUNK
+        # expand (point, triangle) pairs in chunks of points
+        cum = np.cumsum(n_per)
+        s = 0
+        while s < len(pids):
+            e = int(np.searchsorted(cum, (cum[s - 1] if s else 0) + step, side="right"))
+            e = max(e, s + 1)
+            sel = np.arange(s, min(e, len(pids)))
+            npp = n_per[sel]
+            pp = np.repeat(pids[sel], npp)
+            off = np.arange(npp.sum()) - np.repeat(np.cumsum(npp) - npp, npp)
+            tt = tri_sorted[np.repeat(starts[pcell[sel]], npp) + off]
+            t = T[tt]
+            py, pz = Pr[pp, 1], Pr[pp, 2]
+            y, z = t[:, :, 1], t[:, :, 2]
+            # edge functions of (py, pz) against the three edges in the yz-plane
+            w0 = (y[:, 1] - py) * (z[:, 2] - pz) - (y[:, 2] - py) * (z[:, 1] - pz)
+            w1 = (y[:, 2] - py) * (z[:, 0] - pz) - (y[:, 0] - py) * (z[:, 2] - pz)
+            w2 = (y[:, 0] - py) * (z[:, 1] - pz) - (y[:, 1] - py) * (z[:, 0] - pz)
+            hit = ((w0 > 0) & (w1 > 0) & (w2 > 0)) | ((w0 < 0) & (w1 < 0) & (w2 < 0))
+            ws = w0 + w1 + w2
+            with np.errstate(divide="ignore", invalid="ignore"):
+                xh = (w0 * t[:, 0, 0] + w1 * t[:, 1, 0] + w2 * t[:, 2, 0]) / ws
+            hit &= xh > Pr[pp, 0]
+            parity += np.bincount(pp[hit], minlength=len(P))
+            s = int(sel[-1]) + 1
+        return parity % 2
+
+
+class InsideTest:
+    """Inside test of a closed triangle mesh, built once and queried many times.
+
+    Ray parity along ``n_rays`` random directions (majority vote). Each direction is a random
+    rotation (seeded), so rays along symmetry planes of a procedural mesh do not graze its
+    edges; a grazing ray can miscount, the vote absorbs it. Building costs O(faces) per ray, a
+    query O(points) plus the triangles in the points' grid cells.
+
+    Parameters
+    ----------
+    V : (nv, 3) float
+    F : (m, 3) int
+    seed : int
+    n_rays : int, odd
+
+    Examples
+    --------
+    >>> test = InsideTest(V, F)            # doctest: +SKIP
+    >>> test(np.zeros((1, 3)))             # doctest: +SKIP
+    array([ True])
+    """
+
+    def __init__(self, V, F, *, seed=0, n_rays=3):
+        V = np.asarray(V, dtype=np.float64)
+        F = np.asarray(F, dtype=np.int64)
+        rng = np.random.default_rng(seed)
+        self.grids = []
+        for _ in range(n_rays):
+            Q, Rm = np.linalg.qr(rng.normal(size=(3, 3)))
+            self.grids.append(_RayGrid(V, F, Q * np.sign(np.diag(Rm))))
+
+    def __call__(self, P):
+        """(n,) bool: whether each point of ``P`` (n, 3) is inside."""
+        P = np.asarray(P, dtype=np.float64).reshape(-1, 3)
+        votes = sum(g.parity(P) for g in self.grids)
+        return votes * 2 > len(self.grids)
 
 
 def inside_mesh(P, V, F, *, seed=0, n_rays=3):
     """Whether each point is inside a closed triangle mesh (ray parity, majority of ``n_rays``).
 
-    Each ray direction is a random rotation (seeded), so rays along symmetry planes of a
-    procedural mesh do not graze its edges; a grazing ray can miscount, the vote absorbs it.
+    One-off form of :class:`InsideTest` (build and query once).
 
     Parameters
     ----------
@@ -577,16 +622,7 @@ def inside_mesh(P, V, F, *, seed=0, n_rays=3):
     -------
     (n,) bool
     """
-    P = np.asarray(P, dtype=np.float64).reshape(-1, 3)
-    V = np.asarray(V, dtype=np.float64)
-    F = np.asarray(F, dtype=np.int64)
-    rng = np.random.default_rng(seed)
-    votes = np.zeros(len(P), np.int64)
-    for _ in range(n_rays):
-        Q, Rm = np.linalg.qr(rng.normal(size=(3, 3)))
-        Q = Q * np.sign(np.diag(Rm))
-        votes += _ray_parity(P, V, F, Q)
-    return votes * 2 > n_rays
+    return InsideTest(V, F, seed=seed, n_rays=n_rays)(P)
 
 
 def winding_number(P, V, F):

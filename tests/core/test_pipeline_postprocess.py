@@ -12,7 +12,8 @@ def test_switches_reach_the_pipeline():
     on = skeletonize(V, F, prune=0.02, simplify=0.01, candidates=3)
     assert "postprocess" not in off.meta and "postprocess" in on.meta
     assert on.n_joints < off.n_joints
-    assert on.meta["postprocess"]["joints_out"] == on.n_joints
+    # Joints the optimum put on one point are contracted after post-processing.
+    assert on.meta["postprocess"]["joints_out"] - on.meta.get("collapsed_joints", 0) == on.n_joints
     assert len(on.bone) == len(V) and on.bone.max() < on.n_bones
     cands = on.meta["component_info"][0]["candidates"]
     assert len(cands) == 3 and sum(c["chosen"] for c in cands) == 1

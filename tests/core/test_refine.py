@@ -1,0 +1,170 @@
+"""Refinement (bones that leave the mesh are split), the reusable inside test, and the
+containment samples along the bones in the LM solver (issue 5: skeletons inside the shape)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from curveskel_addon.core import skeletonize
+from curveskel_addon.core.problem import FitProblem
+from curveskel_addon.core.quality import InsideTest, inside_mesh, winding_number
+from curveskel_addon.core.refine import outside_samples, pull_in_leaves, refine, split_bones
+from curveskel_addon.core.refit import refit_mapping
+from curveskel_addon.core.solvers.lm import _Regulariser, _sample_matrix, lm_steps
+from tests.core.test_regularisation import _box
+from tests.meshes import bent_capsule, capsule, torus
+
+
+def _sigma(pr):
+    i, j = pr.bones[pr.bone, 0], pr.bones[pr.bone, 1]
+    return pr.t[:, None] * pr.joints[i, :3] + (1 - pr.t[:, None]) * pr.joints[j, :3]
+
+
+def _corner_cut():
+    """The L-shaped capsule with ONE bone from the end of one arm to the end of the other: both
+    joints inside, the middle of the bone far outside (it cuts the corner)."""
+    V, F = bent_capsule()
+    joints = np.array([[-4.0, 0.0, 0.0, 0.5], [0.0, 0.0, 4.0, 0.5]])
+    pr = FitProblem(V, np.ones(len(V)), joints, np.array([[0, 1]]), np.zeros(len(V), np.int64),
+                    np.full(len(V), 0.5))
+    pr.bone, pr.t, _, _ = refit_mapping(pr)
+    pr.meta["regularisation"] = {"containment": 1.0, "smoothness": 0.0, "surface": (V, F)}
+    return V, F, pr
+
+
+def _lm(pr, iterations=100):
+    last = None
+    for last in lm_steps(pr, max_iterations=iterations, refit_mapping=True):
+        pass
+    out = pr.copy()
+    out.joints, out.bone, out.t = last.joints, last.bone, last.t
+    return out
+
+
+def test_inside_test_reused_equals_one_off_and_winding_number():
+    V, F = torus()
+    rng = np.random.default_rng(1)
+    test = InsideTest(V, F)
+    for _ in range(2):                                   # built once, queried twice
+        P = rng.uniform(-4.2, 4.2, size=(400, 3)) * [1, 1, 0.35]
+        ins = test(P)
+        assert np.array_equal(ins, inside_mesh(P, V, F))
+        assert np.array_equal(ins, winding_number(P, V, F) > 0.5)
+        assert 0.1 < ins.mean() < 0.9
+
+
+def test_outside_samples_finds_the_corner_cut():
+    V, F, pr = _corner_cut()
+    t, out, joint_out = outside_samples(pr.joints, pr.bones, InsideTest(V, F), per_bone=16)
+    assert not joint_out.any()
+    # The bone's middle is outside, its ends inside (distance of the midpoint (-2, 0, 2) to the
+    # L's axis is about 1.6, the radius 0.5).
+    assert out[0, 6:10].all() and not out[0, [0, -1]].any()
+
+
+def test_split_keeps_sigma_and_places_the_joint_inside():
+    V, F, pr = _corner_cut()
+    sp = split_bones(pr, np.array([0]), np.array([0.5]))
+    assert sp.joints.shape == (3, 4) and sp.bones.tolist() == [[0, 2], [2, 1]]
+    # The new joint starts at the centre of the cross-section the bone explains there: inside.
+    assert inside_mesh(sp.joints[2:, :3], V, F)[0]
+    assert 0.2 < sp.joints[2, 3] < 1.2
+    # The mapping is carried over exactly: with the new joint at the interpolated point, every
+    # vertex's sigma is where it was.
+    exact = sp.copy()
+    exact.joints[2] = 0.5 * pr.joints[0] + 0.5 * pr.joints[1]
+    np.testing.assert_allclose(_sigma(exact), _sigma(pr), atol=1e-12)
+    assert np.all((sp.t >= 0) & (sp.t <= 1))
+
+
+def test_refine_brings_a_corner_cutting_bone_inside():
+    V, F, pr = _corner_cut()
+    out, log = refine(_lm(pr), V, F, _lm, max_joints=300, rounds=3)
+    assert log["outside_before"] > 0.2
+    assert log["outside_after"] == 0.0
+    assert log["split"][0] == 1 and log["kept"][0]
+    assert len(out.joints) > 2
+    _, o, jo = outside_samples(out.joints, out.bones, InsideTest(V, F), per_bone=32)
+    assert not o.any() and not jo.any()
+
+
+def test_refine_respects_the_joint_budget():
+    V, F, pr = _corner_cut()
+    out, log = refine(pr, V, F, _lm, max_joints=2, rounds=3)
+    assert log["split"] == [] and len(out.joints) == 2
+
+
+def test_pull_in_moves_an_outside_leaf_along_its_bone():
+    V, F = capsule(radius=1.0, length=6.0)            # axis z from 0 to 6, caps beyond
+    joints = np.array([[0.0, 0.0, 7.5, 0.1], [0.0, 0.0, 3.0, 1.0], [0.0, 0.0, 0.5, 0.5]])
+    bones = np.array([[0, 1], [1, 2]])
+    moved, n = pull_in_leaves(joints, bones, InsideTest(V, F))
+    assert n == 1
+    assert inside_mesh(moved[:1, :3], V, F)[0]
+    assert 6.0 < moved[0, 2] < 7.0                     # just inside the cap (its top is z = 7)
+    np.testing.assert_array_equal(moved[1:], joints[1:])
+
+
+def test_sample_matrix_interpolates_joints_and_radii():
+    bones = np.array([[0, 1], [1, 2]])
+    W, sw = _sample_matrix(bones, 3, np.array([0.25, 0.5, 0.75]), 1.0)
+    J = np.array([[0.0, 0, 0, 1.0], [4.0, 0, 0, 3.0], [4.0, 4, 0, 1.0]])
+    X = W @ J
+    np.testing.assert_allclose(X[:3], J)
+    np.testing.assert_allclose(X[3], [1.0, 0, 0, 1.5])          # u = 1/4 from joint 0
+    np.testing.assert_allclose(X[7], [4.0, 2, 0, 2.0])          # the middle of bone 1
+    np.testing.assert_allclose(sw, [1, 1, 1] + [1 / 3] * 6)
+
+
+def test_containment_gradient_matches_finite_differences():
+    V, F, pr = _corner_cut()
+    reg = _Regulariser(pr, pr.joints, 1.0)
+    # Off the L's symmetry plane x = -z, where the nearest surface switches arms (a kink).
+    J0 = pr.joints + np.array([[0.3, 0.05, 0.1, 0.1], [-0.1, 0.02, 0.25, 0.2]])
+    g, grad = reg._containment(J0)
+    X = reg.W @ J0
+    h = 1e-6
+    for k in range(4):
+        # Moving both joints by h moves every sample by h: the sample gradient, column k.
+        Jp, Jm = J0.copy(), J0.copy()
+        Jp[:, k] += h
+        Jm[:, k] -= h
+        fd = (reg._containment(Jp)[0] - reg._containment(Jm)[0]) / (2 * h)
+        np.testing.assert_allclose(fd, grad[:, k], rtol=1e-4, atol=1e-6)
+    assert len(g) == len(X) == 2 + 3
+
+
+def test_signed_distance_is_negative_just_outside_a_thin_plate():
+    # A plate 0.04 thick on a 0.25 grid: the 8 nearest surface points of a point just above it
+    # include the far side, whose planes would say "inside"; only the near side must count.
+    V, F = _box(half=(2.0, 0.02, 2.0), n=16)
+    pr = FitProblem(V, np.ones(len(V)), np.array([[0.0, 0.03, 0.0, 0.0]]), np.zeros((0, 2), int),
+                    np.zeros(len(V), int), np.ones(len(V)))
+    pr.meta["regularisation"] = {"containment": 1.0, "smoothness": 0.0, "surface": (V, F)}
+    reg = _Regulariser(pr, pr.joints, 1.0)
+    for y, sign in ((0.03, -1), (0.06, -1), (0.0, 1), (-0.03, -1)):
+        g, _ = reg._containment(np.array([[0.1, y, 0.1, 0.0]]))
+        assert np.sign(-g[0]) == sign, (y, -g[0])
+
+
+def test_bone_samples_pull_a_corner_cutting_bone_in():
+    V, F, pr = _corner_cut()
+    test = InsideTest(V, F)
+    frac = {}
+    for weight in (0.0, 1.0):
+        q = pr.copy()
+        q.meta = {"regularisation": dict(pr.meta["regularisation"], bone_sample_weight=weight)}
+        sol = _lm(q)
+        frac[weight] = outside_samples(sol.joints, sol.bones, test)[1].mean()
+    assert frac[0.0] > 0.3                     # joints alone: the bone still cuts the corner
+    assert frac[1.0] < 0.8 * frac[0.0]        # measured 0.69 -> 0.50 of the points
+
+
+def test_default_pipeline_records_the_refinement():
+    V, F = bent_capsule()
+    sk = skeletonize(V, F)
+    log = sk.meta["refine"]
+    assert log["outside_after"] <= log["outside_before"]
+    assert sk.n_joints <= 300
+    off = skeletonize(V, F, refine=0)
+    assert "refine" not in off.meta and "refine" not in off.timings
