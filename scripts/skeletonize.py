@@ -37,6 +37,15 @@ _HELP = {
     "prune": "remove leaf branches that explain less than this share of E (0 = keep all; default %(default)s)",
     "simplify": "merge chain joints when E rises by less than this fraction (0 = off; default %(default)s)",
     "candidates": "first approximations tried (poles/spacings); the lowest E wins (default %(default)s)",
+    "smoothness": "weight of a term keeping chain joints between their neighbours (lm only; "
+                  "0 = off; default %(default)s)",
+    "containment": "weight of a term keeping joints and points along the bones inside the mesh "
+                   "with their balls (lm only; 0 = off; default %(default)s)",
+    "max_fit_points": "above this many vertices fit an area-weighted random subset of this size "
+                      "(0 = all; default %(default)s)",
+    "refine": "rounds of splitting bones that leave the mesh and re-solving; then outside leaf "
+              "joints are pulled in (0 = off; default %(default)s)",
+    "max_joints": "joint budget of the refinement (default %(default)s)",
 }
 
 

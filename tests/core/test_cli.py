@@ -82,3 +82,18 @@ def test_unsupported_suffix_and_help(tmp_path):
     assert h.returncode == 0
     for opt in ("--spacing", "--solver", "--max-iterations", "--tolerance", "--seed", "--paper", "--json"):
         assert opt in h.stdout
+
+
+def test_help_explains_every_method_parameter():
+    import importlib.util
+    from dataclasses import fields
+
+    from curveskel_addon.core import SkeletonParams
+
+    spec = importlib.util.spec_from_file_location("skeletonize_cli", CLI)
+    cli = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(cli)
+    names = {f.name for f in fields(SkeletonParams)}
+    assert names <= set(cli._HELP), sorted(names - set(cli._HELP))
+    h = run("--help").stdout
+    assert "--refine REFINE" in h and "rounds of splitting bones" in h
