@@ -31,7 +31,7 @@ from typing import Callable
 import numpy as np
 
 from .problem import FitProblem
-from .quality import InsideTest
+from .quality import InsideTest, bone_points
 
 __all__ = ["refine", "outside_samples", "split_bones", "pull_in_leaves"]
 
@@ -39,12 +39,6 @@ __all__ = ["refine", "outside_samples", "split_bones", "pull_in_leaves"]
 PER_BONE = 16
 #: Half-width (in t) of the band of points that places a new joint.
 BAND = 0.1
-
-
-def _bone_samples(joints, bones, per_bone):
-    t = (np.arange(per_bone) + 0.5) / per_bone
-    xi, xj = joints[bones[:, 0], :3], joints[bones[:, 1], :3]
-    return t, t[None, :, None] * xi[:, None, :] + (1.0 - t)[None, :, None] * xj[:, None, :]
 
 
 def outside_samples(joints, bones, inside: InsideTest, *, per_bone: int = PER_BONE):
@@ -67,9 +61,9 @@ def outside_samples(joints, bones, inside: InsideTest, *, per_bone: int = PER_BO
     """
     joints = np.asarray(joints, np.float64)
     bones = np.asarray(bones, np.int64).reshape(-1, 2)
-    t, P = _bone_samples(joints, bones, per_bone)
-    ins = inside(np.concatenate([P.reshape(-1, 3), joints[:, :3]]))
+    t = (np.arange(per_bone) + 0.5) / per_bone
     nb = len(bones) * per_bone
+    ins = inside(np.concatenate([bone_points(joints, bones, per_bone)[:nb], joints[:, :3]]))
     return t, ~ins[:nb].reshape(len(bones), per_bone), ~ins[nb:]
 
 
@@ -144,16 +138,10 @@ def pull_in_leaves(joints, bones, inside: InsideTest, *, steps: int = 8) -> tupl
     if not leaves.size:
         return joints, 0
     # The neighbour of each leaf: the other end of its single bone.
-    b = np.flatnonzero(np.isin(bones[:, 0], leaves) | np.isin(bones[:, 1], leaves))
-    other = {}
-    for bi in b:
-        a, c = bones[bi]
-        if a in leaves:
-            other[int(a)] = int(c)
-        if c in leaves:
-            other[int(c)] = int(a)
-    L = np.array(sorted(other))
-    N = np.array([other[x] for x in L])
+    at0 = np.isin(bones[:, 0], leaves)
+    at1 = np.isin(bones[:, 1], leaves)
+    L = np.concatenate([bones[at0, 0], bones[at1, 1]])
+    N = np.concatenate([bones[at0, 1], bones[at1, 0]])
     lams = 0.5 ** np.arange(steps, 0, -1)                    # 1/256 ... 1/2
     X = joints[L, None, :3] + lams[None, :, None] * (joints[N, None, :3] - joints[L, None, :3])
     ins = inside(X.reshape(-1, 3)).reshape(len(L), steps)
