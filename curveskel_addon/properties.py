@@ -69,8 +69,8 @@ class GenerateSettings:
                                "the mesh (Levenberg-Marquardt only; 0 is off)",
                                default=_D.containment, min=0.0, soft_max=100.0, precision=3, step=1)
     refine: IntProperty(name="Refine Rounds", description="Rounds of splitting the bones that "
-                        "leave the mesh and re-solving; leaf joints still outside are then pulled "
-                        "in (0 is off)", default=_D.refine, min=0, soft_max=10)
+                        "leave the mesh and re-solving; joints still outside are then pulled in "
+                        "(0 is off)", default=_D.refine, min=0, soft_max=10)
     max_joints: IntProperty(name="Max Joints", description="No bone is split by the refinement "
                             "beyond this many joints", default=_D.max_joints, min=2, soft_max=1000)
     max_fit_points: IntProperty(name="Fit Points", description="Above this many vertices the solver "

@@ -43,8 +43,8 @@ _HELP = {
                    "with their balls (lm only; 0 = off; default %(default)s)",
     "max_fit_points": "above this many vertices fit an area-weighted random subset of this size "
                       "(0 = all; default %(default)s)",
-    "refine": "rounds of splitting bones that leave the mesh and re-solving; then outside leaf "
-              "joints are pulled in (0 = off; default %(default)s)",
+    "refine": "rounds of splitting bones that leave the mesh and re-solving; then outside "
+              "joints are pulled in and bones split without a solve (0 = off; default %(default)s)",
     "max_joints": "joint budget of the refinement (default %(default)s)",
 }
 

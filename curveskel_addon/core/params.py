@@ -50,8 +50,9 @@ class SkeletonParams:
         reconstruction distance); see :mod:`.solvers.lm`.
     refine : int
         Rounds of splitting the bones that leave the mesh (tested exactly at points along
-        every bone) and re-solving; then leaf joints still outside are pulled in along their
-        bone (0 disables). See :mod:`.refine`.
+        every bone) and re-solving; then, without re-solving, joints still outside are pulled
+        in and bones split again (0 disables). Folds (chains doubling back along another part,
+        :func:`.postprocess.unfold_chains`) are merged away first. See :mod:`.refine`.
     max_joints : int
         Joint budget of the refinement: no bone is split beyond this many joints.
     max_fit_points : int

@@ -21,7 +21,7 @@ from .mesh_graph import components
 from .mapping import closest_on_bones
 from .mesh_input import clean_mesh
 from .params import SOLVERS, SkeletonParams
-from .postprocess import postprocess
+from .postprocess import postprocess, unfold_chains
 from .problem import FitProblem, SolverState
 from .reeb import first_approximation
 from .refine import refine
@@ -229,9 +229,15 @@ class SkeletonRun:
         pr = self.problem.copy()
         pr.joints, pr.bone, pr.t = st.joints, st.bone, st.t
         with self._timed("refine"):
+            # Folds first (a chain doubling back along another part), re-solved; then the
+            # bones that leave the mesh (the last word on containment).
+            pr, unfolded = unfold_chains(pr)
+            if unfolded:
+                pr = self._solve(pr, REFINE_ITERATIONS)
             out, self.refine_log = refine(pr, self.mesh.V, self.mesh.F,
                                           lambda q: self._solve(q, REFINE_ITERATIONS),
                                           max_joints=p.max_joints, rounds=p.refine)
+            self.refine_log["unfolded"] = unfolded
         self.problem = FitProblem(out.points, out.weights, out.joints, out.bones, out.bone, out.t,
                                   dict(pr.meta))
         self._state = SolverState(st.iteration, out.joints, out.bone, out.t, energy(out), done=True)

@@ -27,7 +27,8 @@ import numpy as np
 
 from .problem import FitProblem
 
-__all__ = ["postprocess", "prune_branches", "simplify_chains", "leaf_branches", "branch_scores"]
+__all__ = ["postprocess", "prune_branches", "simplify_chains", "unfold_chains", "fold_joints",
+           "leaf_branches", "branch_scores"]
 
 Solve = Callable[[FitProblem], FitProblem]
 
@@ -262,8 +263,9 @@ def prune_branches(pr: FitProblem, threshold: float, *, max_rounds: int = 50) ->
 
 
 # -- chain simplification ----------------------------------------------------------------------
-def _merge_costs(pr: FitProblem, max_offset: float = np.inf):
-    """For every joint of degree 2: the E increase of merging its two bones into one.
+def _merge_costs(pr: FitProblem, max_offset: float = np.inf, only=None):
+    """For every joint of degree 2 (of ``only``, a (J,) bool mask, if given): the E increase of
+    merging its two bones into one.
 
     The vertices of the two bones are re-mapped to the closest point of the merged bone *or* of
     a bone sharing one of its end joints (a local re-fit of sigma, as between solver steps), so
@@ -288,7 +290,7 @@ def _merge_costs(pr: FitProblem, max_offset: float = np.inf):
     o = np.argsort(ends, kind="stable")
     inc_ptr = np.searchsorted(ends[o], np.arange(J + 1))
     inc_b = binc[o]
-    cand = np.flatnonzero(deg == 2)
+    cand = np.flatnonzero((deg == 2) if only is None else (deg == 2) & only)
     b1, b2 = inc_b[inc_ptr[cand]], inc_b[inc_ptr[cand] + 1]
     other = lambda b, j: np.where(B[b, 0] == j, B[b, 1], B[b, 0])  # noqa: E731
     a, c = other(b1, cand), other(b2, cand)
@@ -300,7 +302,8 @@ def _merge_costs(pr: FitProblem, max_offset: float = np.inf):
     # Geometric guard: the joint must lie within max_offset * r_j of the merged bone, so the
     # new bone stays inside the old silhouette (E alone does not see a bone leaving the shape).
     _, d2j = _project(pr.joints[cand, :3], pr.joints[a, :3], pr.joints[c, :3])
-    ok &= np.sqrt(d2j) <= max_offset * np.abs(pr.joints[cand, 3])
+    if np.isfinite(max_offset):
+        ok &= np.sqrt(d2j) <= max_offset * np.abs(pr.joints[cand, 3])
     cand, b1, b2, a, c = cand[ok], b1[ok], b2[ok], a[ok], c[ok]
     k = len(cand)
 
@@ -342,6 +345,51 @@ def _merge_costs(pr: FitProblem, max_offset: float = np.inf):
             nt[m] = tt
         new.append((nbone, nt))
     return cand, cost, np.stack([a, c], 1), np.stack([b1, b2], 1), new
+
+
+def _independent(pr, cand, nbrs, order, cost, budget=np.inf, spent=0.0):
+    """Merges to make in one round, taken in ``order`` while ``spent + cost`` stays within
+    ``budget``, skipping any within the 2-ring of one already taken (the merge re-maps vertices
+    onto bones at a and c, which must not change in the same round). Returns (acc, spent)."""
+    blocked = np.zeros(len(pr.joints), bool)
+    ends = pr.bones.ravel()
+    o = np.argsort(ends, kind="stable")
+    ptr = np.searchsorted(ends[o], np.arange(len(pr.joints) + 1))
+    partner = pr.bones[:, ::-1].ravel()[o]           # the other joint of each incidence
+    nbr_of = lambda x: partner[ptr[x]:ptr[x + 1]]  # noqa: E731
+    acc = []
+    for k in order:
+        if spent + cost[k] > budget:
+            if cost[k] > 0:
+                break
+            continue
+        j = cand[k]
+        if blocked[j]:
+            continue
+        acc.append(k)
+        spent += cost[k]
+        ring = np.concatenate([[j], nbrs[k], nbr_of(nbrs[k, 0]), nbr_of(nbrs[k, 1])])
+        blocked[ring] = True
+    return np.asarray(acc, np.int64), spent
+
+
+def _apply_merges(pr, cand, acc, nbrs, cb, new) -> FitProblem:
+    """Make the merges ``acc`` of :func:`_merge_costs`' candidates (vertices re-mapped as costed)."""
+    bones, bone, t = pr.bones.copy(), pr.bone.copy(), pr.t.copy()
+    keep_bone = np.ones(len(bones), bool)
+    slot = np.full(len(pr.joints), -1)
+    slot[cand[acc]] = acc
+    for s in (0, 1):                                  # vertices whose bone end s is merged
+        nbone, nt = new[s]
+        m = np.flatnonzero((slot[pr.bones[pr.bone, s]] >= 0) & (nbone > -2))
+        merged_bone = cb[slot[pr.bones[pr.bone[m], s]], 0]
+        bone[m] = np.where(nbone[m] == -1, merged_bone, nbone[m])
+        t[m] = nt[m]
+    bones[cb[acc, 0]] = nbrs[acc]                     # (a, c) replaces (a, j); t refers to a, c
+    keep_bone[cb[acc, 1]] = False
+    pr.bones, pr.bone, pr.t = bones, bone, t
+    pr = _compact(pr, keep_bone)
+    return pr
 
 
 def simplify_chains(pr: FitProblem, threshold: float, *, max_offset: float = 0.25,
@@ -398,48 +446,92 @@ def simplify_chains(pr: FitProblem, threshold: float, *, max_offset: float = 0.2
         cand, cost, nbrs, cb, new = _merge_costs(pr, max_offset)
         if len(cand) == 0:
             break
-        blocked = np.zeros(len(pr.joints), bool)
-        ends = pr.bones.ravel()
-        o = np.argsort(ends, kind="stable")
-        ptr = np.searchsorted(ends[o], np.arange(len(pr.joints) + 1))
-        partner = pr.bones[:, ::-1].ravel()[o]           # the other joint of each incidence
-        nbr_of = lambda x: partner[ptr[x]:ptr[x + 1]]  # noqa: E731
-        acc = []
-        for k in np.argsort(cost, kind="stable"):
-            if spent + cost[k] > budget:
-                if cost[k] > 0:
-                    break
-                continue
-            j = cand[k]
-            if blocked[j]:
-                continue
-            acc.append(k)
-            spent += cost[k]
-            # Block the 2-ring: the merge re-maps vertices onto bones at a and c, which must
-            # not change in this round.
-            ring = np.concatenate([[j], nbrs[k], nbr_of(nbrs[k, 0]), nbr_of(nbrs[k, 1])])
-            blocked[ring] = True
-        if not acc:
+        acc, spent = _independent(pr, cand, nbrs, np.argsort(cost, kind="stable"), cost, budget, spent)
+        if not len(acc):
             break
-        acc = np.asarray(acc)
-        bones, bone, t = pr.bones.copy(), pr.bone.copy(), pr.t.copy()
-        keep_bone = np.ones(len(bones), bool)
-        slot = np.full(len(pr.joints), -1)
-        slot[cand[acc]] = acc
-        for s in (0, 1):                                  # vertices whose bone end s is merged
-            nbone, nt = new[s]
-            m = np.flatnonzero((slot[pr.bones[pr.bone, s]] >= 0) & (nbone > -2))
-            merged_bone = cb[slot[pr.bones[pr.bone[m], s]], 0]
-            bone[m] = np.where(nbone[m] == -1, merged_bone, nbone[m])
-            t[m] = nt[m]
-        bones[cb[acc, 0]] = nbrs[acc]                     # (a, c) replaces (a, j); t refers to a, c
-        keep_bone[cb[acc, 1]] = False
-        pr.bones, pr.bone, pr.t = bones, bone, t
-        pr = _compact(pr, keep_bone)
+        pr = _apply_merges(pr, cand, acc, nbrs, cb, new)
         info["merged"] += int(len(acc))
         info["rounds"] += 1
     info["energy_after"] = _energy(pr)
     return pr, info
+
+
+#: A chain joint whose two bones turn by more than this (cosine of the turn below -0.9:
+#: more than 154 degrees) is a fold: the chain doubles back on itself...
+FOLD_COS = -0.9
+#: ... when both bones are longer than this many times the joint's radius.
+FOLD_MIN_LENGTH = 2.0
+
+
+def fold_joints(joints: np.ndarray, bones: np.ndarray, cos_max: float = FOLD_COS) -> np.ndarray:
+    """(J,) bool: joints of degree 2 where the chain doubles back (turn beyond ``cos_max``,
+    both bones longer than ``FOLD_MIN_LENGTH`` times the joint's radius).
+
+    The turn at j between (a, j) and (j, c) is the angle between ``x_j - x_a`` and
+    ``x_c - x_j``; a straight chain turns 0, a hairpin almost 180 degrees.
+    """
+    J = len(joints)
+    deg = _degree(J, bones)
+    out = np.zeros(J, bool)
+    mid = np.flatnonzero(deg == 2)
+    if not mid.size:
+        return out
+    ends = bones.ravel()
+    o = np.argsort(ends, kind="stable")
+    ptr = np.searchsorted(ends[o], np.arange(J + 1))
+    partner = bones[:, ::-1].ravel()[o]
+    a, c = partner[ptr[mid]], partner[ptr[mid] + 1]
+    u = joints[mid, :3] - joints[a, :3]
+    v = joints[c, :3] - joints[mid, :3]
+    nu, nv = np.linalg.norm(u, axis=1), np.linalg.norm(v, axis=1)
+    # A turn between bones shorter than twice the joint's radius is hidden in its ball (and the
+    # direction of a near-zero bone is noise): not a fold.
+    r = FOLD_MIN_LENGTH * np.abs(joints[mid, 3])
+    ok = (nu > r) & (nv > r) & (nu > 0) & (nv > 0)
+    cos = np.einsum("ij,ij->i", u, v) / np.where(ok, nu * nv, 1.0)
+    sharp = np.flatnonzero(ok & (cos < cos_max))
+    # ... and one of its bones runs inside the silhouette of a bone elsewhere (not at j): the
+    # chain doubles another part of the skeleton (a zig-zag across a flat part does not).
+    from .quality import sd_round_cone
+
+    X, r_all = joints[:, :3], np.abs(joints[:, 3])
+    for k in sharp:
+        j = mid[k]
+        others = np.flatnonzero((bones[:, 0] != j) & (bones[:, 1] != j))
+        if not others.size:
+            continue
+        M = np.stack([(X[a[k]] + X[j]) / 2, (X[j] + X[c[k]]) / 2])       # bone midpoints
+        bi, bj = bones[others, 0], bones[others, 1]
+        sd = sd_round_cone(M[:, None, :], X[bi][None], X[bj][None], r_all[bi][None], r_all[bj][None])
+        out[j] = bool((sd < 0).any())
+    return out
+
+
+def unfold_chains(pr: FitProblem, *, cos_max: float = FOLD_COS, max_rounds: int = 50) -> tuple[FitProblem, int]:
+    """Merge away every chain joint where the chain doubles back, whatever it costs in E.
+
+    Why: E cannot see a fold. Where parts meet (a junction, a saddle) a chain that runs out
+    along a neighbouring part and back lets overlapping bones explain the same vertices, which
+    E rewards; a rigger sees an arm rooted half-way along another arm. A fold is a
+    joint of degree 2 whose bones, both longer than its ball, turn by more than 154 degrees
+    (:func:`fold_joints`); it is
+    merged like :func:`simplify_chains` merges (vertices re-mapped to the merged bone or a
+    neighbour), sharpest first, without the cost budget or the offset guard. Topology is kept
+    (no merge duplicates a bone). Returns (problem, joints merged).
+    """
+    pr = pr.copy()
+    merged = 0
+    for _ in range(max_rounds):
+        folds = fold_joints(pr.joints, pr.bones, cos_max)
+        if not folds.any():
+            break
+        cand, cost, nbrs, cb, new = _merge_costs(pr, np.inf, only=folds)
+        if len(cand) == 0:
+            break
+        acc, _ = _independent(pr, cand, nbrs, np.arange(len(cand)), np.zeros(len(cand)))
+        pr = _apply_merges(pr, cand, acc, nbrs, cb, new)
+        merged += int(len(acc))
+    return pr, merged
 
 
 # -- entry point -------------------------------------------------------------------------------

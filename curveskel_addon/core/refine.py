@@ -13,10 +13,10 @@ the bone's own point is not), with their mean distance as its radius. The mappin
 bone's points is carried over exactly (sigma is unchanged where the joint is interpolated) and
 then re-fitted by the solver.
 
-Finally, joints still outside (tips of thin parts whose balls have shrunk to nothing, where the
-solver puts the joint on the surface) are moved along their bone towards the neighbouring joint
-until they are inside: the only stage that moves a joint without re-solving, by at most the
-part of the bone that is outside.
+Then, without re-solving: joints still outside (tips of thin parts whose balls have shrunk to
+nothing, where the solver puts the joint on the surface) are moved towards their neighbours
+until inside, and bones still cutting corners are split again. These local rounds leave the
+rest of the skeleton as the solver put it.
 
 Examples
 --------
@@ -33,12 +33,14 @@ import numpy as np
 from .problem import FitProblem
 from .quality import InsideTest, bone_points
 
-__all__ = ["refine", "outside_samples", "split_bones", "pull_in_leaves"]
+__all__ = ["refine", "outside_samples", "split_bones", "pull_in_joints"]
 
 #: Points tested per bone, at t = (k + 1/2) / PER_BONE (the quality measure uses 10).
 PER_BONE = 16
 #: Half-width (in t) of the band of points that places a new joint.
 BAND = 0.1
+#: Rounds of splitting without re-solving, after the solved rounds.
+LOCAL_ROUNDS = 6
 
 
 def outside_samples(joints, bones, inside: InsideTest, *, per_bone: int = PER_BONE):
@@ -124,36 +126,85 @@ def split_bones(pr: FitProblem, split: np.ndarray, t_split: np.ndarray) -> FitPr
     return FitProblem(pr.points, pr.weights, joints, bones, bone, np.clip(t, 0.0, 1.0), dict(pr.meta))
 
 
-def pull_in_leaves(joints, bones, inside: InsideTest, *, steps: int = 8) -> tuple[np.ndarray, int]:
-    """Move joints of degree 1 that are outside the mesh towards their neighbour until inside.
+def pull_in_joints(joints, bones, inside: InsideTest, *, steps: int = 8) -> tuple[np.ndarray, int]:
+    """Move joints that are outside the mesh towards their neighbours until inside.
 
-    Tries ``lam = 1/2^steps ... 1/2`` of the way along the bone (the smallest move first); a
-    joint whose neighbour is outside too stays where it is. Returns (joints, moved).
+    The target of a joint is the mean of its neighbours (a leaf's: its one neighbour); the
+    smallest move of ``lam = 1/2^steps ... 1/2`` of the way (and, for a joint with two or more
+    neighbours, 3/4 and all the way: the chord between them) that puts it inside is taken. A
+    joint no such move brings inside stays. Returns (joints, moved).
     """
     joints = np.array(joints, np.float64)
     bones = np.asarray(bones, np.int64).reshape(-1, 2)
-    deg = np.bincount(bones.ravel(), minlength=len(joints))
+    J = len(joints)
     out = ~inside(joints[:, :3])
-    leaves = np.flatnonzero(out & (deg == 1))
-    if not leaves.size:
+    deg = np.bincount(bones.ravel(), minlength=J)
+    L = np.flatnonzero(out & (deg > 0))
+    if not L.size:
         return joints, 0
-    # The neighbour of each leaf: the other end of its single bone.
-    at0 = np.isin(bones[:, 0], leaves)
-    at1 = np.isin(bones[:, 1], leaves)
-    L = np.concatenate([bones[at0, 0], bones[at1, 1]])
-    N = np.concatenate([bones[at0, 1], bones[at1, 0]])
-    lams = 0.5 ** np.arange(steps, 0, -1)                    # 1/256 ... 1/2
-    X = joints[L, None, :3] + lams[None, :, None] * (joints[N, None, :3] - joints[L, None, :3])
-    ins = inside(X.reshape(-1, 3)).reshape(len(L), steps)
+    # Mean of the neighbours of every joint, from the bone list (both directions).
+    ends, other = bones.ravel(), bones[:, ::-1].ravel()
+    T = np.stack([np.bincount(ends, weights=joints[other, a], minlength=J) for a in range(3)], 1)
+    T = T[L] / deg[L, None]
+    lams = np.concatenate([0.5 ** np.arange(steps, 0, -1), [0.75, 1.0]])
+    X = joints[L, None, :3] + lams[None, :, None] * (T[:, None, :] - joints[L, None, :3])
+    ins = inside(X.reshape(-1, 3)).reshape(len(L), len(lams))
+    ins[deg[L] == 1, steps:] = False                       # a leaf does not reach its neighbour
     first = np.where(ins.any(axis=1), ins.argmax(axis=1), -1)
     moved = first >= 0
     joints[L[moved], :3] = X[moved, first[moved]]
     return joints, int(moved.sum())
 
 
+def _split_outside(pr, t, out, budget, inside: InsideTest | None = None, per_bone: int = PER_BONE):
+    """Split every bone with points outside away from its ends (outside at an end is that
+    joint's business) at the mean parameter of its outside points, worst first, at most
+    ``budget``. Returns (problem, bones split).
+
+    The new joint starts at the centre of the cross-section it explains (:func:`split_bones`).
+    With ``inside`` (when no solver follows) it is placed instead on the line from the bone's
+    own point there through that centre, where the two new bones have the fewest points
+    outside: the centre of a curved part's cross-section can lie off to one side, the bone's
+    own point is outside.
+    """
+    cand = np.flatnonzero(out[:, 1:-1].any(axis=1))
+    cand = cand[np.argsort(-out[cand].sum(axis=1), kind="stable")][:max(budget, 0)]
+    if not cand.size:
+        return pr, 0
+    ts = np.clip((out[cand] * t).sum(axis=1) / out[cand].sum(axis=1), t[1], t[-2])
+    sp = split_bones(pr, cand, ts)
+    if inside is None:
+        return sp, int(len(cand))
+    k, J0 = len(cand), len(pr.joints)
+    i, j = pr.bones[cand, 0], pr.bones[cand, 1]
+    X0 = ts[:, None] * pr.joints[i, :3] + (1.0 - ts[:, None]) * pr.joints[j, :3]
+    C = sp.joints[J0:, :3]
+    lam = np.linspace(0.0, 1.5, 7)
+    P = X0[:, None, :] + lam[None, :, None] * (C - X0)[:, None, :]          # (k, L, 3)
+    u = (np.arange(per_bone) + 0.5) / per_bone
+    # Points of the halves (i, new) and (new, j) for every candidate position: (k, L, 2, n, 3).
+    Xi = pr.joints[i, None, None, :3]
+    Xj = pr.joints[j, None, None, :3]
+    h1 = u[None, None, :, None] * Xi + (1 - u)[None, None, :, None] * P[:, :, None, :]
+    h2 = u[None, None, :, None] * P[:, :, None, :] + (1 - u)[None, None, :, None] * Xj
+    S = np.stack([h1, h2], axis=2)
+    bad = (~inside(S.reshape(-1, 3))).reshape(k, len(lam), -1).sum(axis=2)
+    best = bad.argmin(axis=1)                      # first minimum: the smallest move
+    sp.joints[J0:, :3] = P[np.arange(k), best]
+    return sp, int(k)
+
+
 def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
-           max_joints: int = 300, rounds: int = 3, per_bone: int = PER_BONE) -> tuple[FitProblem, dict]:
-    """Split bones with points outside the mesh and re-solve, ``rounds`` times at most.
+           max_joints: int = 300, rounds: int = 3, local_rounds: int = LOCAL_ROUNDS,
+           per_bone: int = PER_BONE) -> tuple[FitProblem, dict]:
+    """Split bones with points outside the mesh and re-solve, ``rounds`` times at most; then
+    move outside joints in and split without re-solving, ``local_rounds`` times.
+
+    A round is kept only if less of the skeleton is outside afterwards (the solver's
+    containment term approximates the surface and can be wrong in parts thinner than its
+    blending radius). The rounds without a solve keep the rest of the skeleton as it is and
+    place each new joint from the points it explains: they finish the corners the solver
+    leaves cut.
 
     Parameters
     ----------
@@ -164,43 +215,55 @@ def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
         Re-optimises (the pipeline's solver settings).
     max_joints : int
         No split beyond this many joints.
-    rounds : int
+    rounds, local_rounds : int
 
     Returns
     -------
     FitProblem, dict
         The log holds ``outside_before`` / ``outside_after`` (fractions of the tested points),
-        ``split`` (bones split per round) and ``pulled_in`` (leaf joints moved).
+        ``split`` and ``kept`` (bones split per round, whether the round was kept; solved
+        rounds first), ``local`` (how many of the rounds did not re-solve) and ``pulled_in``
+        (outside joints moved in, per local round).
     """
     pr = pr.copy()
     inside = InsideTest(V, F)
-    log = {"split": [], "kept": []}
+    log = {"split": [], "kept": [], "local": 0, "pulled_in": []}
     t, out, _ = outside_samples(pr.joints, pr.bones, inside, per_bone=per_bone)
     log["outside_before"] = frac = float(out.mean()) if out.size else 0.0
-    for _ in range(rounds):
-        # Bones with points outside away from their ends (outside at an end is that joint's
-        # business); split at the mean parameter of the outside points.
-        cand = np.flatnonzero(out[:, 1:-1].any(axis=1))
-        budget = max_joints - len(pr.joints)
-        if not cand.size or budget <= 0:
+    def fraction(q):
+        o = outside_samples(q.joints, q.bones, inside, per_bone=per_bone)[1]
+        return o, (float(o.mean()) if o.size else 0.0)
+
+    for _ in range(rounds):                     # split, re-solve
+        trial, n = _split_outside(pr, t, out, max_joints - len(pr.joints))
+        if not n:
             break
-        cand = cand[np.argsort(-out[cand].sum(axis=1), kind="stable")][:budget]
-        tt = (out[cand] * t).sum(axis=1) / out[cand].sum(axis=1)
-        tt = np.clip(tt, t[1], t[-2])
-        trial = solve(split_bones(pr, cand, tt))
-        t, out_new, _ = outside_samples(trial.joints, trial.bones, inside, per_bone=per_bone)
-        frac_new = float(out_new.mean()) if out_new.size else 0.0
-        log["split"].append(int(len(cand)))
-        # Keep a round only if less of the skeleton is outside (the solver's containment term
-        # approximates the surface and can be wrong in parts thinner than its blending radius).
-        keep = frac_new < frac
-        log["kept"].append(bool(keep))
-        if not keep:
+        trial = solve(trial)
+        out_new, frac_new = fraction(trial)
+        log["split"].append(n)
+        log["kept"].append(bool(frac_new < frac))
+        if not frac_new < frac:
             break
         pr, out, frac = trial, out_new, frac_new
-    joints, moved = pull_in_leaves(pr.joints, pr.bones, inside)
-    pr.joints = joints
-    log["pulled_in"] = moved
+    for _ in range(local_rounds):               # joints in; split; new joints in; no solve
+        a = pr.copy()
+        a.joints, moved = pull_in_joints(pr.joints, pr.bones, inside)
+        out_a, frac_a = fraction(a)
+        b, n = _split_outside(a, t, out_a, max_joints - len(pr.joints), inside, per_bone)
+        if n:
+            b.joints, moved_b = pull_in_joints(b.joints, b.bones, inside)
+            out_b, frac_b = fraction(b)
+        if n and frac_b < frac_a:
+            a, out_a, frac_a, moved = b, out_b, frac_b, moved + moved_b
+        else:
+            n = 0
+        if not frac_a < frac:
+            break
+        log["local"] += 1
+        log["split"].append(n)
+        log["kept"].append(True)
+        log["pulled_in"].append(moved)
+        pr, out, frac = a, out_a, frac_a
     _, out, _ = outside_samples(pr.joints, pr.bones, inside, per_bone=per_bone)
     log["outside_after"] = float(out.mean()) if out.size else 0.0
     return pr, log

@@ -165,9 +165,9 @@ def test_rest_pose_is_the_input(name):
 
 
 @pytest.mark.parametrize("name", ["bent_capsule", pytest.param("star", marks=pytest.mark.xfail(
-    strict=True, reason="known regression (issue 5 follow-up): the default skeleton of the star "
-    "folds one arm's chain back along another arm (see tests/core/test_rig_layout.py), so "
-    "that arm's top bone starts far out on the arm"))])
+    strict=True, reason="known (issue 5 follow-up): the default skeleton of the star keeps a short "
+    "fold at the junction in one arm's chain (a turn between bones shorter than two radii, below "
+    "what unfold_chains removes), so that arm's top bone starts 0.4 out on the arm"))])
 def test_posing_moves_one_arm_only(name):
     V, sk, ob, arm, fig = rigged(name)
     diag = float(np.linalg.norm(np.ptp(V, axis=0)))

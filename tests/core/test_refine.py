@@ -4,11 +4,12 @@ containment samples along the bones in the LM solver (issue 5: skeletons inside 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from curveskel_addon.core import skeletonize
 from curveskel_addon.core.problem import FitProblem
 from curveskel_addon.core.quality import InsideTest, inside_mesh, winding_number
-from curveskel_addon.core.refine import outside_samples, pull_in_leaves, refine, split_bones
+from curveskel_addon.core.refine import outside_samples, pull_in_joints, refine, split_bones
 from curveskel_addon.core.refit import refit_mapping
 from curveskel_addon.core.solvers.lm import _Regulariser, _sample_matrix, lm_steps
 from tests.core.test_regularisation import _box
@@ -98,7 +99,7 @@ def test_pull_in_moves_an_outside_leaf_along_its_bone():
     V, F = capsule(radius=1.0, length=6.0)            # axis z from 0 to 6, caps beyond
     joints = np.array([[0.0, 0.0, 7.5, 0.1], [0.0, 0.0, 3.0, 1.0], [0.0, 0.0, 0.5, 0.5]])
     bones = np.array([[0, 1], [1, 2]])
-    moved, n = pull_in_leaves(joints, bones, InsideTest(V, F))
+    moved, n = pull_in_joints(joints, bones, InsideTest(V, F))
     assert n == 1
     assert inside_mesh(moved[:1, :3], V, F)[0]
     assert 6.0 < moved[0, 2] < 7.0                     # just inside the cap (its top is z = 7)
@@ -168,3 +169,66 @@ def test_default_pipeline_records_the_refinement():
     assert sk.n_joints <= 300
     off = skeletonize(V, F, refine=0)
     assert "refine" not in off.meta and "refine" not in off.timings
+
+
+def test_pull_in_moves_an_outside_chain_joint_towards_its_neighbours():
+    V, F = capsule(radius=1.0, length=6.0)
+    # The middle joint of a chain pokes out sideways (x = 1.6, the tube's radius is 1).
+    joints = np.array([[0.0, 0.0, 1.0, 1.0], [1.6, 0.0, 3.0, 1.0], [0.0, 0.0, 5.0, 1.0]])
+    moved, n = pull_in_joints(joints, np.array([[0, 1], [1, 2]]), InsideTest(V, F))
+    assert n == 1 and inside_mesh(moved[1:2, :3], V, F)[0]
+    assert moved[1, 0] == pytest.approx(0.8) and moved[1, 2] == 3.0   # half-way: the first step in
+    np.testing.assert_array_equal(moved[[0, 2]], joints[[0, 2]])
+
+
+def test_local_rounds_alone_repair_without_a_solver():
+    V, F, pr = _corner_cut()
+
+    def no_solver(q):
+        raise AssertionError("rounds=0: the solver must not run")
+
+    out, log = refine(pr, V, F, no_solver, rounds=0, local_rounds=6)
+    assert log["local"] >= 1 and all(log["kept"])
+    assert log["outside_after"] < 0.5 * log["outside_before"]
+    assert len(out.joints) > 2
+
+
+def test_unfold_removes_a_chain_doubling_back_along_another_part():
+    from curveskel_addon.core.postprocess import fold_joints, unfold_chains
+
+    V, F = capsule(radius=0.5, length=8.0)
+    # From joint 0 the chain goes down to 1, back up to 2 (along bone (0, 4), inside its round
+    # cone), down again to 3 and on to 5: folds at 1 and 2.
+    joints = np.array([[0, 0, 4.0, 0.5], [0, 0, 2.0, 0.5], [0, 0, 6.5, 0.5], [0, 0, 1.5, 0.5],
+                       [0, 0, 7.5, 0.5], [0, 0, 0.0, 0.5]])
+    bones = np.array([[0, 1], [1, 2], [2, 3], [3, 5], [0, 4]])
+    folds = fold_joints(joints, bones)
+    assert folds.tolist() == [False, True, True, False, False, False]
+    pr = FitProblem(V, np.ones(len(V)), joints, bones, np.zeros(len(V), np.int64), np.full(len(V), 0.5))
+    pr.bone, pr.t, _, _ = refit_mapping(pr)
+    out, merged = unfold_chains(pr)
+    assert merged >= 2
+    assert not fold_joints(out.joints, out.bones).any()
+    # Topology kept: one component, no cycle, the same leaves.
+    deg = np.bincount(out.bones.ravel(), minlength=len(out.joints))
+    assert len(out.bones) == len(out.joints) - 1 and (deg == 1).sum() == 2
+    # A straight chain and a zig-zag that overlaps nothing else are not folds.
+    straight = np.array([[0, 0, z, 0.5] for z in (0.0, 2.0, 4.0, 6.0)])
+    assert not fold_joints(straight, np.array([[0, 1], [1, 2], [2, 3]])).any()
+    zig = np.array([[0, 0, 0, 0.1], [3, 0, 0, 0.1], [0.2, 0, 0.5, 0.1]])
+    assert not fold_joints(zig, np.array([[0, 1], [1, 2]])).any()
+
+
+def test_star_skeleton_has_no_fold_and_a_central_root():
+    from curveskel_addon.core.postprocess import fold_joints
+    from curveskel_addon.core.rig_layout import rig_layout
+    from tests.meshes import star
+
+    V, F = star()
+    sk = skeletonize(V, F)
+    assert not fold_joints(sk.joints, sk.bones).any()
+    assert sk.meta["refine"]["unfolded"] >= 1        # the solver folds an arm; it is undone
+    L = np.linalg.norm(sk.joints[sk.bones[:, 0], :3] - sk.joints[sk.bones[:, 1], :3], axis=1).sum()
+    assert L < 1.15 * 16.0                           # four arms of 4: no long doubling back
+    root = rig_layout(sk.joints, sk.bones).roots[0]
+    assert np.linalg.norm(sk.joints[root, :3]) < 0.5

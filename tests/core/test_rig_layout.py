@@ -172,14 +172,7 @@ def test_rejects_bad_input():
         rig_layout(np.zeros((2, 2)), [[0, 1]])
 
 
-_STAR_FOLD = pytest.mark.xfail(strict=True, reason=(
-    "known regression (issue 5 follow-up): with containment samples along the bones the re-solve "
-    "after chain simplification folds one arm's chain of the star back along another arm (E of "
-    "the folded skeleton is lower: overlapping bones explain the junction), so the graph centre "
-    "moves 1.27 along an arm"))
-
-
-@pytest.mark.parametrize("name", [pytest.param("star", marks=_STAR_FOLD), "torus", "bent_capsule"])
+@pytest.mark.parametrize("name", ["star", "torus", "bent_capsule"])
 def test_real_skeletons(name):
     V, F = getattr(meshes, name)()
     sk = skeletonize(V, F)
