@@ -222,7 +222,8 @@ class SkeletonRun:
                                   self.postprocess_log["energy_out"], done=True)
 
     def _refine(self) -> None:
-        """Split bones that leave the mesh and re-solve (``params.refine`` rounds), once."""
+        """Once: merge away folds (:func:`.postprocess.unfold_chains`) and re-solve, then split
+        the bones that leave the mesh and re-solve (``params.refine`` rounds, :mod:`.refine`)."""
         p, st = self.params, self._state
         if self.refine_log is not None or p.refine <= 0 or st is None:
             return
