@@ -38,6 +38,7 @@ Progress = Callable[[str, float], None]
 COLLAPSE_RADIUS = 0.02   # ... or than this fraction of the smaller end radius
 #: Solver iterations after each refinement round (the split is local: the rest is converged).
 REFINE_ITERATIONS = 20
+UNFOLD_ITERATIONS = 20
 COLLAPSE_TOL = 1e-4   # 0.01 % of the size: invisible, and the solver leaves such pairs only ~1e-6 apart
 
 
@@ -234,7 +235,7 @@ class SkeletonRun:
             # bones that leave the mesh (the last word on containment).
             pr, unfolded = unfold_chains(pr)
             if unfolded:
-                pr = self._solve(pr, REFINE_ITERATIONS)
+                pr = self._solve(pr, UNFOLD_ITERATIONS)
             out, self.refine_log = refine(pr, self.mesh.V, self.mesh.F,
                                           lambda q: self._solve(q, REFINE_ITERATIONS),
                                           max_joints=p.max_joints, rounds=p.refine)

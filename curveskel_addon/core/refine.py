@@ -31,6 +31,7 @@ from typing import Callable
 import numpy as np
 
 from .problem import FitProblem
+from .medial import MedialBalls
 from .quality import InsideTest, bone_points
 
 __all__ = ["refine", "outside_samples", "split_bones", "pull_in_joints"]
@@ -156,7 +157,8 @@ def pull_in_joints(joints, bones, inside: InsideTest, *, steps: int = 8) -> tupl
     return joints, int(moved.sum())
 
 
-def _split_outside(pr, t, out, budget, inside: InsideTest | None = None, per_bone: int = PER_BONE):
+def _split_outside(pr, t, out, budget, inside: InsideTest | None = None, per_bone: int = PER_BONE,
+                   balls: MedialBalls | None = None):
     """Split every bone with points outside away from its ends (outside at an end is that
     joint's business) at the mean parameter of its outside points, worst first, at most
     ``budget``. Returns (problem, bones split).
@@ -165,7 +167,10 @@ def _split_outside(pr, t, out, budget, inside: InsideTest | None = None, per_bon
     With ``inside`` (when no solver follows) it is placed instead on the line from the bone's
     own point there through that centre, where the two new bones have the fewest points
     outside: the centre of a curved part's cross-section can lie off to one side, the bone's
-    own point is outside.
+    own point is outside. With ``balls`` the medial balls touching the surface nearest the centre
+    and nearest each outside point of the bone are candidates too (centre and radius): in a thin part the bone explains too few
+    points for a centroid. A bone is split only if its halves have fewer points outside than
+    it had.
     """
     cand = np.flatnonzero(out[:, 1:-1].any(axis=1))
     cand = cand[np.argsort(-out[cand].sum(axis=1), kind="stable")][:max(budget, 0)]
@@ -181,6 +186,15 @@ def _split_outside(pr, t, out, budget, inside: InsideTest | None = None, per_bon
     C = sp.joints[J0:, :3]
     lam = np.linspace(0.0, 1.5, 7)
     P = X0[:, None, :] + lam[None, :, None] * (C - X0)[:, None, :]          # (k, L, 3)
+    radius = np.repeat(sp.joints[J0:, 3:4], len(lam), axis=1)              # (k, L)
+    if balls is not None:
+        # Medial balls at the surface nearest the centroid and nearest every outside point of
+        # the bone (the bone's own point at t* stands in for its inside points).
+        Pb = t[None, :, None] * pr.joints[i, None, :3] + (1 - t)[None, :, None] * pr.joints[j, None, :3]
+        Pb = np.where(out[cand][:, :, None], Pb, X0[:, None, :])
+        mc, mr = balls.at_nearest(np.concatenate([C, Pb.reshape(-1, 3)]))
+        P = np.concatenate([P, mc[:k, None], mc[k:].reshape(k, -1, 3)], axis=1)
+        radius = np.concatenate([radius, mr[:k, None], mr[k:].reshape(k, -1)], axis=1)
     u = (np.arange(per_bone) + 0.5) / per_bone
     # Points of the halves (i, new) and (new, j) for every candidate position: (k, L, 2, n, 3).
     Xi = pr.joints[i, None, None, :3]
@@ -188,10 +202,18 @@ def _split_outside(pr, t, out, budget, inside: InsideTest | None = None, per_bon
     h1 = u[None, None, :, None] * Xi + (1 - u)[None, None, :, None] * P[:, :, None, :]
     h2 = u[None, None, :, None] * P[:, :, None, :] + (1 - u)[None, None, :, None] * Xj
     S = np.stack([h1, h2], axis=2)
-    bad = (~inside(S.reshape(-1, 3))).reshape(k, len(lam), -1).sum(axis=2)
+    bad = (~inside(S.reshape(-1, 3))).reshape(k, P.shape[1], -1).sum(axis=2)
     best = bad.argmin(axis=1)                      # first minimum: the smallest move
-    sp.joints[J0:, :3] = P[np.arange(k), best]
-    return sp, int(k)
+    better = bad[np.arange(k), best] < out[cand].sum(axis=1)
+    if not better.all():
+        if not better.any():
+            return pr, 0
+        cand, ts, best = cand[better], ts[better], best[better]
+        sp = split_bones(pr, cand, ts)
+    rows = np.flatnonzero(better)
+    sp.joints[J0:, :3] = P[rows, best]
+    sp.joints[J0:, 3] = radius[rows, best]
+    return sp, int(len(cand))
 
 
 def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
@@ -227,6 +249,7 @@ def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
     """
     pr = pr.copy()
     inside = InsideTest(V, F)
+    balls = MedialBalls(V, F)
     log = {"split": [], "kept": [], "local": 0, "pulled_in": []}
     t, out, _ = outside_samples(pr.joints, pr.bones, inside, per_bone=per_bone)
     log["outside_before"] = frac = float(out.mean()) if out.size else 0.0
@@ -249,7 +272,7 @@ def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
         a = pr.copy()
         a.joints, moved = pull_in_joints(pr.joints, pr.bones, inside)
         out_a, frac_a = fraction(a)
-        b, n = _split_outside(a, t, out_a, max_joints - len(pr.joints), inside, per_bone)
+        b, n = _split_outside(a, t, out_a, max_joints - len(pr.joints), inside, per_bone, balls)
         if n:
             b.joints, moved_b = pull_in_joints(b.joints, b.bones, inside)
             out_b, frac_b = fraction(b)

@@ -234,3 +234,16 @@ def test_star_skeleton_has_no_fold():
     L = np.linalg.norm(sk.joints[sk.bones[:, 0], :3] - sk.joints[sk.bones[:, 1], :3], axis=1).sum()
     assert L < 1.15 * 16.0                           # four arms of 4: no long doubling back
 
+
+
+def test_local_split_places_a_medial_joint_when_the_bone_explains_no_points():
+    # All points mapped at the bone's end: no cross-section near the split to take a centroid
+    # from (a tentacle bone of the octopus explains 4-18 vertices). The medial balls of the
+    # surface place the new joints inside the tube with the tube's radius.
+    V, F, pr = _corner_cut()
+    pr.t[:] = 0.999
+    out, log = refine(pr, V, F, None, rounds=0, local_rounds=6)
+    assert log["outside_before"] == 0.75 and log["outside_after"] == 0.0
+    new = out.joints[2:]
+    assert len(new) >= 1 and InsideTest(V, F)(new[:, :3]).all()
+    np.testing.assert_allclose(new[:, 3], 0.5, atol=0.06)

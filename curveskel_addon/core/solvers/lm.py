@@ -89,6 +89,7 @@ from scipy.spatial import cKDTree
 from scipy.sparse.linalg import splu
 
 from ..energy import bone_to_joints, line_residuals, quartic_from_residuals, sigma_terms
+from ..medial import surface_points
 from ..line_search import minimize_quartic, minimize_quartic_on
 from ..problem import FitProblem, SolverState
 from ..refit import bone_neighbours, refit_mapping as _refit
@@ -228,17 +229,7 @@ class _Regulariser:
             med = max(float(np.linalg.norm(ext)) * 1e-2, 1e-12)
         S = E0 / (J * med * med)
         if c > 0 and surface is not None and len(surface[1]) > 0:
-            V = np.asarray(surface[0], dtype=np.float64)
-            F = np.asarray(surface[1], dtype=np.int64)
-            fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])   # 2 area * normal
-            vn = np.zeros_like(V)
-            for k in range(3):
-                np.add.at(vn, F[:, k], fn)
-            used = np.zeros(len(V), dtype=bool)
-            used[F.ravel()] = True
-            pts = np.concatenate([V[used], V[F].mean(axis=1)])
-            nrm = np.concatenate([vn[used], fn])
-            nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+            pts, nrm = surface_points(surface[0], surface[1])
             if len(pts) > self.MAX_SURFACE_POINTS:
                 # k-NN queries from a joint equidistant to much of the surface (a cap centre)
                 # visit every such point: a fixed-size seeded subset bounds the cost.
