@@ -38,7 +38,6 @@ Progress = Callable[[str, float], None]
 COLLAPSE_RADIUS = 0.02   # ... or than this fraction of the smaller end radius
 #: Solver iterations after each refinement round (the split is local: the rest is converged).
 REFINE_ITERATIONS = 20
-UNFOLD_ITERATIONS = 20
 COLLAPSE_TOL = 1e-4   # 0.01 % of the size: invisible, and the solver leaves such pairs only ~1e-6 apart
 
 
@@ -223,8 +222,9 @@ class SkeletonRun:
                                   self.postprocess_log["energy_out"], done=True)
 
     def _refine(self) -> None:
-        """Once: merge away folds (:func:`.postprocess.unfold_chains`) and re-solve, then split
-        the bones that leave the mesh and re-solve (``params.refine`` rounds, :mod:`.refine`)."""
+        """Once: merge away folds (:func:`.postprocess.unfold_chains`), then split the bones
+        that leave the mesh and re-solve (``params.refine`` rounds, :mod:`.refine`; its first
+        solve serves the unfolded skeleton too), then repair locally."""
         p, st = self.params, self._state
         if self.refine_log is not None or p.refine <= 0 or st is None:
             return
@@ -233,12 +233,12 @@ class SkeletonRun:
         with self._timed("refine"):
             # Folds first (a chain doubling back along another part), re-solved; then the
             # bones that leave the mesh (the last word on containment).
+            # The first solved round of the refinement re-solves the unfolded skeleton too.
             pr, unfolded = unfold_chains(pr)
-            if unfolded:
-                pr = self._solve(pr, UNFOLD_ITERATIONS)
             out, self.refine_log = refine(pr, self.mesh.V, self.mesh.F,
                                           lambda q: self._solve(q, REFINE_ITERATIONS),
-                                          max_joints=p.max_joints, rounds=p.refine)
+                                          max_joints=p.max_joints, rounds=p.refine,
+                                          solved=not unfolded)
             self.refine_log["unfolded"] = unfolded
         self.problem = FitProblem(out.points, out.weights, out.joints, out.bones, out.bone, out.t,
                                   dict(pr.meta))

@@ -247,3 +247,42 @@ def test_local_split_places_a_medial_joint_when_the_bone_explains_no_points():
     new = out.joints[2:]
     assert len(new) >= 1 and InsideTest(V, F)(new[:, :3]).all()
     np.testing.assert_allclose(new[:, 3], 0.5, atol=0.06)
+
+
+def _straight_capsule_problem():
+    V, F = capsule(radius=1.0, length=6.0)
+    joints = np.array([[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 3.0, 1.0], [0.0, 0.0, 6.0, 1.0]])
+    bones = np.array([[0, 1], [1, 2]])
+    pr = FitProblem(V, np.ones(len(V)), joints, bones, np.zeros(len(V), np.int64),
+                    np.full(len(V), 0.5))
+    pr.bone, pr.t, _, _ = refit_mapping(pr)
+    return V, F, pr
+
+
+def test_refine_solves_only_when_enough_is_outside_or_the_problem_is_unsolved():
+    V, F, pr = _straight_capsule_problem()
+    calls = []
+
+    def solve(q):
+        calls.append(len(q.joints))
+        return q
+
+    out, log = refine(pr, V, F, solve, rounds=3)
+    assert log["outside_before"] == 0.0 and calls == []          # inside: nothing to re-solve
+    out, log = refine(pr, V, F, solve, rounds=3, solved=False)
+    assert calls == [3]                                           # solved once, as it was
+    V, F, pr = _corner_cut()                                      # 75 % outside: solved rounds
+    refine(pr, V, F, solve, rounds=1)
+    assert calls == [3, 3]
+
+
+def test_containment_memo_never_returns_a_stale_value():
+    V, F, pr = _corner_cut()
+    reg = _Regulariser(pr, pr.joints, 1.0)
+    J0, J1 = pr.joints.copy(), pr.joints + 0.1
+    g0 = reg._containment(J0)[0].copy()
+    g1 = reg._containment(J1)[0].copy()
+    assert not np.allclose(g0, g1)
+    np.testing.assert_array_equal(reg._containment(J0)[0], g0)
+    fresh = _Regulariser(pr, pr.joints, 1.0)
+    np.testing.assert_array_equal(fresh._containment(J1)[0], g1)

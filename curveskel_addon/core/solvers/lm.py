@@ -219,6 +219,7 @@ class _Regulariser:
         self.n_joints = J
         self.kc = self.ks = 0.0
         self.active = False
+        self._memo = None
         if J == 0 or not (c > 0 or s > 0) or not E0 > 0:
             return
         r = joints[:, 3]
@@ -276,6 +277,10 @@ class _Regulariser:
         descent); the planes of neighbouring points nearly agree, so this ``d`` is smooth at the
         scale of the mesh. Its gradient is exact (weights differentiated too).
         """
+        key = joints.tobytes()
+        if self._memo is not None and self._memo[0] == key:
+            # The step just accepted was evaluated as a trial: the next assembly asks again.
+            return self._memo[1]
         X = self.W @ joints
         x = X[:, :3]
         k = min(self.K, len(self.pts))
@@ -298,6 +303,7 @@ class _Regulariser:
         grad = np.empty((len(x), 4))
         grad[:, :3] = -grad_d
         grad[:, 3] = 1.0
+        self._memo = (key, (g, grad))
         return g, grad
 
     def value(self, joints) -> float:
