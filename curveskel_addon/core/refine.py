@@ -36,7 +36,7 @@ from .problem import FitProblem
 from .medial import MedialBalls
 from .quality import InsideTest, bone_points
 
-__all__ = ["refine", "outside_samples", "split_bones", "pull_in_joints"]
+__all__ = ["refine", "outside_samples", "split_bones", "pull_in_joints", "relocate_joints"]
 
 #: Points tested per bone, at t = (k + 1/2) / PER_BONE (the quality measure uses 10).
 PER_BONE = 16
@@ -163,6 +163,79 @@ def pull_in_joints(joints, bones, inside: InsideTest, *, steps: int = 8) -> tupl
     return joints, int(moved.sum())
 
 
+def relocate_joints(joints, bones, inside: InsideTest, balls: MedialBalls | None = None, *,
+                    per_bone: int = PER_BONE) -> tuple[np.ndarray, int]:
+    """Move joints of bones that leave the mesh to where their bones have the fewest points
+    outside (a local descent on the exact outside count, no solver).
+
+    Candidates for a joint: ``x + lam (T - x)`` with T the mean of its neighbours, lam = 1/8 ...
+    1 (a leaf's: at most 1/2), and, with ``balls``, the medial balls touching the surface
+    nearest the outside points of its bones (then the ball's radius too). A joint inside with
+    all its bones where both ends are inside can still be the trouble: the middle joint of a
+    chain that jumps between two parts (octopus: a joint of radius 0 between two tentacles).
+    Joints sharing a bone do not move in the same call (each is scored with its neighbours
+    fixed), worst first.
+
+    Returns
+    -------
+    joints : (J, 4) float, moved : int
+    """
+    joints = np.array(joints, np.float64)
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    J, Bn = len(joints), len(bones)
+    if not Bn:
+        return joints, 0
+    t, out, _ = outside_samples(joints, bones, inside, per_bone=per_bone)
+    bad = out.sum(axis=1)
+    cand = np.unique(bones[bad > 0].ravel())
+    if not cand.size:
+        return joints, 0
+    deg = np.bincount(bones.ravel(), minlength=J)
+    ends, other = bones.ravel(), bones[:, ::-1].ravel()
+    inc_bone = np.repeat(np.arange(Bn), 2)
+    T = np.stack([np.bincount(ends, weights=joints[other, a], minlength=J) for a in range(3)], 1)
+    T /= np.maximum(deg, 1)[:, None]
+    lams = np.array([0.125, 0.25, 0.5, 0.75, 1.0])
+    u = (np.arange(per_bone) + 0.5) / per_bone
+    P_all, R_all, S_all, meta = [], [], [], []
+    for j in cand:
+        inc = np.flatnonzero(ends == j)
+        lj = lams[lams <= 0.5] if deg[j] == 1 else lams
+        P = joints[j, :3] + lj[:, None] * (T[j] - joints[j, :3])
+        R = np.full(len(P), joints[j, 3])
+        if balls is not None:
+            b_in = inc_bone[inc]
+            Q = (t[None, :, None] * joints[bones[b_in, 0], None, :3]
+                 + (1 - t)[None, :, None] * joints[bones[b_in, 1], None, :3])[out[b_in]]
+            if len(Q):
+                mc, mr = balls.at_nearest(Q[np.linspace(0, len(Q) - 1, min(len(Q), per_bone)).astype(int)])
+                P, R = np.concatenate([P, mc]), np.concatenate([R, mr])
+        P = np.concatenate([joints[j:j + 1, :3], P])            # first: stay
+        R = np.concatenate([joints[j:j + 1, 3], R])
+        O = joints[other[inc], :3]                              # the far ends of its bones
+        S = u[None, None, :, None] * P[:, None, None, :] + (1 - u)[None, None, :, None] * O[None, :, None, :]
+        P_all.append(P), R_all.append(R), S_all.append(S.reshape(-1, 3))
+        meta.append((j, len(P), len(inc)))
+    ins = inside(np.concatenate(S_all))
+    scores, off = [], 0
+    for (j, L, d), S in zip(meta, S_all):
+        scores.append((~ins[off:off + len(S)]).reshape(L, d * per_bone).sum(axis=1))
+        off += len(S)
+    order = np.argsort([-sc[0] for sc in scores], kind="stable")
+    blocked = np.zeros(J, bool)
+    moved = 0
+    for k in order:
+        j = meta[k][0]
+        best = int(np.argmin(scores[k]))
+        if blocked[j] or not scores[k][best] < scores[k][0]:
+            continue
+        joints[j, :3], joints[j, 3] = P_all[k][best], R_all[k][best]
+        blocked[other[ends == j]] = True
+        blocked[j] = True
+        moved += 1
+    return joints, moved
+
+
 def _split_outside(pr, t, out, budget, inside: InsideTest | None = None, per_bone: int = PER_BONE,
                    balls: MedialBalls | None = None):
     """Split every bone with points outside away from its ends (outside at an end is that
@@ -226,7 +299,8 @@ def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
            max_joints: int = 300, rounds: int = 3, local_rounds: int = LOCAL_ROUNDS,
            per_bone: int = PER_BONE, solved: bool = True) -> tuple[FitProblem, dict]:
     """Split bones with points outside the mesh and re-solve, ``rounds`` times at most; then
-    move outside joints in and split without re-solving, ``local_rounds`` times.
+    move outside joints in, split and relocate joints without re-solving, ``local_rounds``
+    times.
 
     A round is kept only if less of the skeleton is outside afterwards (the solver's
     containment term approximates the surface and can be wrong in parts thinner than its
@@ -254,7 +328,8 @@ def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
         The log holds ``outside_before`` / ``outside_after`` (fractions of the tested points),
         ``split`` and ``kept`` (bones split per round, whether the round was kept; solved
         rounds first), ``local`` (how many of the rounds did not re-solve) and ``pulled_in``
-        (outside joints moved in, per local round).
+        (joints moved per local round: outside joints pulled in, joints relocated by
+        :func:`relocate_joints`).
     """
     pr = pr.copy()
     inside = InsideTest(V, F)
@@ -294,6 +369,12 @@ def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
             a, out_a, frac_a, moved = b, out_b, frac_b, moved + moved_b
         else:
             n = 0
+        c = a.copy()
+        c.joints, moved_c = relocate_joints(a.joints, a.bones, inside, balls, per_bone=per_bone)
+        if moved_c:
+            out_c, frac_c = fraction(c)
+            if frac_c < frac_a:
+                a, out_a, frac_a, moved = c, out_c, frac_c, moved + moved_c
         if not frac_a < frac:
             break
         log["local"] += 1
