@@ -32,6 +32,7 @@ from typing import Callable
 
 import numpy as np
 
+from .energy import energy, sigma_terms
 from .problem import FitProblem
 from .medial import MedialBalls
 from .quality import InsideTest, bone_points
@@ -46,6 +47,8 @@ BAND = 0.1
 #: few bones out, re-solving everything for them moved the rest more than it helped (the round
 #: was rejected on spot, hand and homer at 0.6-1.6 % outside); the local rounds repair them.
 SOLVE_ABOVE = 0.02
+#: Fraction of the bones, those explaining the most of E, split too in a solved round.
+FIT_SPLIT = 0.2
 #: Rounds of splitting without re-solving, after the solved rounds.
 LOCAL_ROUNDS = 6
 
@@ -236,8 +239,23 @@ def relocate_joints(joints, bones, inside: InsideTest, balls: MedialBalls | None
     return joints, moved
 
 
+def worst_fitting_bones(pr: FitProblem, fraction: float, exclude=()) -> np.ndarray:
+    """The ``fraction`` of the bones with the largest share of E (worst first), but ``exclude``.
+
+    A bone's share is the weighted sum of ``e_v^2`` over the points mapped to it: a long bone
+    whose linear radius cannot follow its part (a torso, a thigh) holds much of E, and the
+    solver cannot bend it; split in the middle and re-solved, it can (armadillo: E / 6).
+    """
+    e = sigma_terms(pr)[2]
+    Eb = np.bincount(pr.bone, weights=pr.weights * e * e, minlength=len(pr.bones))
+    Eb[np.asarray(exclude, np.int64)] = -1.0
+    k = int(np.floor(fraction * len(pr.bones) + 0.5))
+    order = np.argsort(-Eb, kind="stable")[:k]
+    return order[Eb[order] > 0]
+
+
 def _split_outside(pr, t, out, budget, inside: InsideTest | None = None, per_bone: int = PER_BONE,
-                   balls: MedialBalls | None = None):
+                   balls: MedialBalls | None = None, fit: float = 0.0):
     """Split every bone with points outside away from its ends (outside at an end is that
     joint's business) at the mean parameter of its outside points, worst first, at most
     ``budget``. Returns (problem, bones split).
@@ -249,13 +267,17 @@ def _split_outside(pr, t, out, budget, inside: InsideTest | None = None, per_bon
     own point is outside. With ``balls`` the medial balls touching the surface nearest the centre
     and nearest each outside point of the bone are candidates too (centre and radius): in a thin part the bone explains too few
     points for a centroid. A bone is split only if its halves have fewer points outside than
-    it had.
+    it had. Without ``inside`` (a solve follows), also the ``fit`` fraction of the bones that
+    explain the most of E (:func:`worst_fitting_bones`), in the middle.
     """
     cand = np.flatnonzero(out[:, 1:-1].any(axis=1))
     cand = cand[np.argsort(-out[cand].sum(axis=1), kind="stable")][:max(budget, 0)]
     if not cand.size:
         return pr, 0
     ts = np.clip((out[cand] * t).sum(axis=1) / out[cand].sum(axis=1), t[1], t[-2])
+    if inside is None and fit > 0:
+        extra = worst_fitting_bones(pr, fit, exclude=cand)[:max(budget - len(cand), 0)]
+        cand, ts = np.concatenate([cand, extra]), np.concatenate([ts, np.full(len(extra), 0.5)])
     sp = split_bones(pr, cand, ts)
     if inside is None:
         return sp, int(len(cand))
@@ -297,7 +319,8 @@ def _split_outside(pr, t, out, budget, inside: InsideTest | None = None, per_bon
 
 def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
            max_joints: int = 300, rounds: int = 3, local_rounds: int = LOCAL_ROUNDS,
-           per_bone: int = PER_BONE, solved: bool = True) -> tuple[FitProblem, dict]:
+           per_bone: int = PER_BONE, solved: bool = True,
+           fit: float = FIT_SPLIT) -> tuple[FitProblem, dict]:
     """Split bones with points outside the mesh and re-solve, ``rounds`` times at most; then
     move outside joints in, split and relocate joints without re-solving, ``local_rounds``
     times.
@@ -337,27 +360,64 @@ def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
     log = {"split": [], "kept": [], "local": 0, "pulled_in": []}
     t, out, _ = outside_samples(pr.joints, pr.bones, inside, per_bone=per_bone)
     log["outside_before"] = frac = float(out.mean()) if out.size else 0.0
+
     def fraction(q):
         o = outside_samples(q.joints, q.bones, inside, per_bone=per_bone)[1]
         return o, (float(o.mean()) if o.size else 0.0)
 
+    def repaired(q):
+        o, f = fraction(q)
+        return _local_rounds(q, o, f, t, inside, balls, fraction, max_joints, local_rounds, per_bone)
+
+    best = None                   # (outside after repair, E, problem, local log) of the choice
     for _ in range(rounds):                     # split, re-solve
         if frac <= SOLVE_ABOVE:
             break
-        trial, n = _split_outside(pr, t, out, max_joints - len(pr.joints))
+        trial, n = _split_outside(pr, t, out, max_joints - len(pr.joints), fit=fit)
         if not n:
             break
         trial = solve(trial)
-        out_new, frac_new = fraction(trial)
         log["split"].append(n)
-        log["kept"].append(bool(frac_new < frac))
-        if not frac_new < frac:
+        cand = repaired(trial)
+        e_cand = energy(cand[0])
+        if fraction(trial)[1] < frac:
+            keep = True                   # less outside even before the repair
+        else:
+            # Judged after the local repair both would get: the solver may leave a few more
+            # points outside than it started with and still fit far better (more joints where
+            # E was). An unsolved start (unfolded) is judged by what is outside only: its E is
+            # not comparable, and solving it just to compare would cost a solve.
+            if best is None:
+                base = repaired(pr)
+                best = (base[1], energy(base[0]) if solved else np.inf, base[0], base[2])
+            keep = (cand[1], e_cand) <= best[:2]
+        log["kept"].append(bool(keep))
+        if not keep:
             break
-        pr, out, frac, solved = trial, out_new, frac_new, True
-    if not solved:
-        pr = solve(pr)
+        best = (cand[1], e_cand, cand[0], cand[2])
+        pr, solved = trial, True
         out, frac = fraction(pr)
-    for _ in range(local_rounds):               # joints in; split; new joints in; no solve
+    if best is None or not solved:
+        if not solved:
+            pr = solve(pr)
+        res = repaired(pr)
+        best = (res[1], energy(res[0]), res[0], res[2])
+    pr, local = best[2], best[3]
+    log["local"] = len(local["split"])
+    log["split"] += local["split"]
+    log["kept"] += [True] * len(local["split"])
+    log["pulled_in"] = local["pulled_in"]
+    _, out, _ = outside_samples(pr.joints, pr.bones, inside, per_bone=per_bone)
+    log["outside_after"] = float(out.mean()) if out.size else 0.0
+    return pr, log
+
+
+def _local_rounds(pr, out, frac, t, inside, balls, fraction, max_joints, rounds, per_bone):
+    """Up to ``rounds`` rounds without a solve: outside joints pulled in, bones split (new
+    joints pulled in), joints relocated; a round is kept only if less is outside.
+    Returns (problem, outside fraction, {"split": [...], "pulled_in": [...]})."""
+    log = {"split": [], "pulled_in": []}
+    for _ in range(rounds):
         a = pr.copy()
         a.joints, moved = pull_in_joints(pr.joints, pr.bones, inside)
         out_a, frac_a = fraction(a)
@@ -377,11 +437,7 @@ def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
                 a, out_a, frac_a, moved = c, out_c, frac_c, moved + moved_c
         if not frac_a < frac:
             break
-        log["local"] += 1
         log["split"].append(n)
-        log["kept"].append(True)
         log["pulled_in"].append(moved)
         pr, out, frac = a, out_a, frac_a
-    _, out, _ = outside_samples(pr.joints, pr.bones, inside, per_bone=per_bone)
-    log["outside_after"] = float(out.mean()) if out.size else 0.0
-    return pr, log
+    return pr, frac, log

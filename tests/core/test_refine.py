@@ -304,3 +304,18 @@ def test_relocate_moves_an_inside_joint_whose_bones_jump_between_parts():
     assert outside_samples(moved, bones, test)[1].sum() == 0
     np.testing.assert_array_equal(moved[[0, 2]], joints[[0, 2]])
     np.testing.assert_allclose(moved[1, :3], [-3.0, 0.0, 0.0])   # the chord of its neighbours
+
+
+def test_worst_fitting_bones_ranks_by_share_of_E():
+    from curveskel_addon.core.energy import sigma_terms
+    from curveskel_addon.core.refine import worst_fitting_bones
+
+    V, F, pr = _straight_capsule_problem()
+    pr.joints[2, 3] = 0.3                    # the upper bone's radius is wrong: it holds most of E
+    e = sigma_terms(pr)[2]
+    share = np.bincount(pr.bone, weights=pr.weights * e * e, minlength=2)
+    assert share[1] > 10 * share[0]
+    assert worst_fitting_bones(pr, 0.5).tolist() == [1]
+    assert worst_fitting_bones(pr, 1.0).tolist() == [1, 0]
+    assert worst_fitting_bones(pr, 1.0, exclude=[1]).tolist() == [0]
+    assert worst_fitting_bones(pr, 0.0).tolist() == []

@@ -469,9 +469,8 @@ def lm_steps(problem: FitProblem, *, max_iterations: int = 100, tolerance: float
             lam = minimize_quartic(c) if line_search else 1.0
             new = joints + lam * h.reshape(J, 4)
             if np.any(new[:, 3] < 0):
-                new, lam = _nonnegative_radii(srt.pr, joints, h.reshape(J, 4), c, lam, new, Ft,
-                                              reg if reg.active else None)
-                e_new = sigma_terms(srt.pr, new)[2]
+                new, lam, e_new = _nonnegative_radii(srt.pr, joints, h.reshape(J, 4), c, lam,
+                                                     new, Ft, reg if reg.active else None)
             else:
                 e_new = A + lam * (B + lam * C)          # exact: e is quadratic along the line
             E_new = float(np.dot(srt.pr.weights * e_new, e_new))
@@ -549,17 +548,17 @@ def lm_steps(problem: FitProblem, *, max_iterations: int = 100, tolerance: float
 def _nonnegative_radii(pr, joints, h, c, lam, new, E, reg=None):
     """Radii went negative along the step: flip them (r enters squared, as in the paper) if that
     keeps the objective (E, plus R when ``reg`` is given) below ``E``; otherwise restrict ``lam``
-    to where every radius stays >= 0."""
+    to where every radius stays >= 0. Returns (joints, lam, e at those joints)."""
     flipped = new.copy()
     flipped[:, 3] = np.abs(flipped[:, 3])
     e = sigma_terms(pr, flipped)[2]
     if float(np.dot(pr.weights * e, e)) + (reg.value(flipped) if reg is not None else 0.0) < E:
-        return flipped, lam
+        return flipped, lam, e
     lo, hi = radius_interval(joints[:, 3], -h[:, 3])
     lam = minimize_quartic_on(c, lo, hi)
     new = joints + lam * h
     new[:, 3] = np.maximum(new[:, 3], 0.0)
-    return new, lam
+    return new, lam, sigma_terms(pr, new)[2]
 
 
 def _damping_scale(H) -> np.ndarray:
