@@ -319,3 +319,15 @@ def test_worst_fitting_bones_ranks_by_share_of_E():
     assert worst_fitting_bones(pr, 1.0).tolist() == [1, 0]
     assert worst_fitting_bones(pr, 1.0, exclude=[1]).tolist() == [0]
     assert worst_fitting_bones(pr, 0.0).tolist() == []
+
+
+def test_split_on_the_bone_leaves_sigma_and_E_unchanged():
+    from curveskel_addon.core.energy import energy
+
+    V, F, pr = _corner_cut()
+    sp = split_bones(pr, np.array([0]), np.array([0.3]), centroid=False)
+    np.testing.assert_allclose(sp.joints[2], 0.3 * pr.joints[0] + 0.7 * pr.joints[1])
+    np.testing.assert_allclose(_sigma(sp), _sigma(pr), atol=1e-12)
+    assert energy(sp) == pytest.approx(energy(pr), rel=1e-12)
+    moved = split_bones(pr, np.array([0]), np.array([0.3]))          # at the cross-section
+    assert energy(moved) != pytest.approx(energy(pr), rel=1e-6)
