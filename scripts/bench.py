@@ -530,13 +530,14 @@ def quality_markdown(results, specs, methods, notes, args) -> str:
                       f"{yes(marks['speed'])} ({r['seconds']:.2f} s"
                       + (f"; rivals: {', '.join(rivals)}" if rivals else "; no rival meets quality")
                       + ")",
-                      "all" if not missed else ", ".join(missed), ""])
+                      "none" if not missed else ", ".join(missed), ""])
     mean_ratio = sum(ratios) / len(ratios) if ratios else float("nan")
     ttable = md_table(["mesh", "topology", "inside ≥ 0.98", "recon ≤ CGAL", "joints ≤ 300",
                        "faster than rivals", "misses", "error"], trows)
     cmd = "python scripts/bench.py --quality" + (" --meshes " + " ".join(args.meshes) if args.meshes else "") \
         + (" --methods " + " ".join(args.methods) if args.methods else "") \
-        + (f" --samples {args.samples}" if args.samples != 20000 else "")
+        + (f" --samples {args.samples}" if args.samples != 20000 else "") \
+        + (f" --quality-repeat {args.quality_repeat}" if args.quality_repeat != 1 else "")
     note_txt = "\n".join(f"- {n}" for n in notes) or "- every peer was installed."
     return f"""## Quality (issue 5)
 

@@ -50,10 +50,12 @@ class SkeletonParams:
         reconstruction distance); see :mod:`.solvers.lm`.
     refine : int
         Rounds of splitting the bones that leave the mesh (tested exactly at points along
-        every bone) and re-solving, each only while more than 2 % of the tested points are
-        outside; then, without re-solving, joints still outside are pulled in and bones split
-        again at medial balls of the surface (0 disables all of it). Default 1: further solved
-        rounds were mostly rejected (nothing gained) and cost 0.3-1 s each on small meshes. Folds (chains doubling back along another part,
+        every bone) and the 40 % of bones holding most of E, and re-solving, each only while
+        more than 2 % of the tested points are outside; then, without re-solving, joints still
+        outside are pulled in, bones split again at medial balls of the surface and joints
+        relocated (0 disables all of it). Default 1; each further round lowers E and recon
+        again (armadillo recon 0.0047 -> 0.0045 D with 2) but costs a solve (0.3-1 s on
+        meshes of 5k vertices). Folds (chains doubling back along another part,
         :func:`.postprocess.unfold_chains`) are merged away first. See :mod:`.refine`.
     max_joints : int
         Joint budget of the refinement: no bone is split beyond this many joints.
