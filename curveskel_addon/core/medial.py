@@ -71,15 +71,42 @@ class MedialBalls:
     """
 
     def __init__(self, V, F, *, max_iterations: int = 30, min_angle: float = MIN_ANGLE):
+        self._mesh = (V, F)
+        self.max_iterations = max_iterations
+        self.cos_min = float(np.cos(np.radians(min_angle)))
+        self._built = False
+
+    def _build(self):
+        # On first use: the refinement keeps one at hand, most meshes never need it.
+        if self._built:
+            return
+        V, F = self._mesh
         pts, nrm = surface_points(V, F)
         # Vertices only: face centroids lie inside a faceted surface (a cylinder's, by its
         # sagitta), so a ball through vertices would always hold some and shrink to them.
         n_used = len(np.unique(np.asarray(F, dtype=np.int64)))
-        self.pts, self.nrm = pts[:n_used], nrm[:n_used]
-        self.tree = cKDTree(self.pts)
-        self.size = float(np.linalg.norm(np.ptp(self.pts, axis=0))) if len(self.pts) else 0.0
-        self.max_iterations = max_iterations
-        self.cos_min = float(np.cos(np.radians(min_angle)))
+        self._pts, self._nrm = pts[:n_used], nrm[:n_used]
+        self._tree = cKDTree(self._pts)
+        self.size = float(np.linalg.norm(np.ptp(self._pts, axis=0))) if len(self._pts) else 0.0
+        self._built = True
+
+    @property
+    def pts(self):
+        """(k, 3) the surface samples (the mesh's used vertices)."""
+        self._build()
+        return self._pts
+
+    @property
+    def nrm(self):
+        """(k, 3) their unit outward normals."""
+        self._build()
+        return self._nrm
+
+    @property
+    def tree(self):
+        """cKDTree of :attr:`pts`."""
+        self._build()
+        return self._tree
 
     def at(self, q_index: np.ndarray):
         """Medial ball touching the surface at each sample ``self.pts[q_index]``.

@@ -53,9 +53,10 @@ class SkeletonParams:
         every bone) and the 40 % of bones holding most of E, and re-solving, each only while
         more than 2 % of the tested points are outside; then, without re-solving, joints still
         outside are pulled in, bones split again at medial balls of the surface and joints
-        relocated (0 disables all of it). Default 1; each further round lowers E and recon
-        again (armadillo recon 0.0047 -> 0.0045 D with 2) but costs a solve (0.3-1 s on
-        meshes of 5k vertices). Folds (chains doubling back along another part,
+        relocated (0 disables all of it; skipped above 500k faces, where its exact inside
+        tests would cost more than the fit, and ``meta["refine"]["skipped"]`` says so).
+        Default 1; each further round lowers E and recon again but costs a solve (0.3-1 s
+        on meshes of 5k vertices). Folds (chains doubling back along another part,
         :func:`.postprocess.unfold_chains`) are merged away first. See :mod:`.refine`.
     max_joints : int
         Joint budget of the refinement: no bone is split beyond this many joints.

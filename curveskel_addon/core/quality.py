@@ -74,6 +74,8 @@ __all__ = ["quality", "sd_round_cone", "silhouette_sdf", "point_triangle_distanc
 
 #: Elements per temporary array in chunked pairwise evaluations (bounds memory to ~tens of MB).
 _CHUNK = 1 << 18
+#: Triangles per grid cell of the inside test (square cells; see _RayGrid).
+_CELL_FACES = 4.0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -507,13 +509,18 @@ class _RayGrid:
         self.R = R
         Vr = V @ R.T
         self.T = T = Vr[F]                             # (m, 3, 3)
-        yz = T[:, :, 1:]
-        lo = yz.min(axis=1)
-        hi = yz.max(axis=1)
+        a, b, c = T[:, 0, 1:], T[:, 1, 1:], T[:, 2, 1:]
+        lo = np.minimum(np.minimum(a, b), c)
+        hi = np.maximum(np.maximum(a, b), c)
         self.glo = glo = Vr[:, 1:].min(axis=0)
         self.ghi = Vr[:, 1:].max(axis=0)
-        self.G = G = int(np.clip(np.sqrt(len(F)), 1, 1024))
-        self.cell = cell = np.maximum((self.ghi - glo) / G, 1e-300)
+        # Square cells, about one per CELL_FACES triangles: a triangle then overlaps a few
+        # cells whatever the shape's extent (cells of bbox / sqrt(F) per axis are thin slivers
+        # on an elongated shape: 17 cells per triangle on a capsule, most of the build time).
+        ext = np.maximum(self.ghi - glo, 1e-300)
+        side = np.sqrt(ext[0] * ext[1] * _CELL_FACES / max(len(F), 1))
+        self.G = G = np.clip(np.ceil(ext / side), 1, 2048).astype(np.int64)     # (Gy, Gz)
+        self.cell = cell = ext / G
         i0 = np.clip(((lo - glo) / cell).astype(np.int64), 0, G - 1)
         i1 = np.clip(((hi - glo) / cell).astype(np.int64), 0, G - 1)
         ny = i1[:, 0] - i0[:, 0] + 1
@@ -521,11 +528,10 @@ class _RayGrid:
         cnt = ny * nz
         tri = np.repeat(np.arange(len(F)), cnt)
         k = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-        cy = i0[tri, 0] + k // nz[tri]
-        cz = i0[tri, 1] + k % nz[tri]
-        cid = cy * G + cz
-        self.tri_sorted = tri[np.argsort(cid, kind="stable")]
-        self.starts = np.concatenate([[0], np.cumsum(np.bincount(cid, minlength=G * G))])
+        nzt = nz[tri]
+        cid = (i0[tri, 0] + k // nzt) * G[1] + (i0[tri, 1] + k % nzt)
+        self.tri_sorted = tri[np.argsort(cid)]     # any order in a cell: parity is a count
+        self.starts = np.concatenate([[0], np.cumsum(np.bincount(cid, minlength=G[0] * G[1]))])
 
     def parity(self, P):
         """Parity of crossings of the ray from each point (n, 3) along the grid's direction."""
@@ -536,7 +542,7 @@ class _RayGrid:
         pin = np.all((Pr[:, 1:] >= glo) & (Pr[:, 1:] <= ghi), axis=1)
         pids = np.flatnonzero(pin)
         pc = np.clip(((Pr[pids, 1:] - glo) / cell).astype(np.int64), 0, G - 1)
-        pcell = pc[:, 0] * G + pc[:, 1]
+        pcell = pc[:, 0] * G[1] + pc[:, 1]
         n_per = starts[pcell + 1] - starts[pcell]
         step = _CHUNK
         # expand (point, triangle) pairs in chunks of points
@@ -590,19 +596,44 @@ class InsideTest:
     """
 
     def __init__(self, V, F, *, seed=0, n_rays=3):
-        V = np.asarray(V, dtype=np.float64)
-        F = np.asarray(F, dtype=np.int64)
+        self._V = np.asarray(V, dtype=np.float64)
+        self._F = np.asarray(F, dtype=np.int64)
         rng = np.random.default_rng(seed)
-        self.grids = []
+        self._rotations = []
         for _ in range(n_rays):
             Q, Rm = np.linalg.qr(rng.normal(size=(3, 3)))
-            self.grids.append(_RayGrid(V, F, Q * np.sign(np.diag(Rm))))
+            self._rotations.append(Q * np.sign(np.diag(Rm)))
+        self._grids: list = [None] * n_rays
+
+    def _grid(self, k):
+        # Built on first use: once a majority agrees the other directions are not needed
+        # (on a closed mesh the first two rays nearly always agree; a grid costs O(faces)).
+        if self._grids[k] is None:
+            self._grids[k] = _RayGrid(self._V, self._F, self._rotations[k])
+        return self._grids[k]
+
+    @property
+    def grids(self):
+        """Every direction's grid (all built)."""
+        return [self._grid(k) for k in range(len(self._grids))]
 
     def __call__(self, P):
         """(n,) bool: whether each point of ``P`` (n, 3) is inside."""
         P = np.asarray(P, dtype=np.float64).reshape(-1, 3)
-        votes = sum(g.parity(P) for g in self.grids)
-        return votes * 2 > len(self.grids)
+        n = len(self._grids)
+        need = n // 2 + 1                               # votes that decide
+        votes = np.zeros(len(P), np.int64)
+        open_ = np.arange(len(P))
+        for k in range(n):
+            if not open_.size:
+                break
+            votes[open_] += self._grid(k).parity(P[open_])
+            done_k = k + 1
+            # Decided: a majority either way, whatever the remaining rays say.
+            rest = n - done_k
+            undecided = (votes[open_] < need) & (votes[open_] + rest >= need)
+            open_ = open_[undecided]
+        return votes >= need
 
 
 def inside_mesh(P, V, F, *, seed=0, n_rays=3):

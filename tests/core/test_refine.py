@@ -331,3 +331,18 @@ def test_split_on_the_bone_leaves_sigma_and_E_unchanged():
     assert energy(sp) == pytest.approx(energy(pr), rel=1e-12)
     moved = split_bones(pr, np.array([0]), np.array([0.3]))          # at the cross-section
     assert energy(moved) != pytest.approx(energy(pr), rel=1e-6)
+
+
+def test_inside_test_builds_a_third_direction_only_where_two_disagree():
+    V, F = torus()
+    rng = np.random.default_rng(3)
+    P = rng.uniform(-4.2, 4.2, size=(2000, 3)) * [1, 1, 0.35]
+    lazy = InsideTest(V, F)
+    got = lazy(P)
+    full = InsideTest(V, F)
+    votes = sum(g.parity(P) for g in full.grids)             # every direction, all points
+    np.testing.assert_array_equal(got, votes >= 2)
+    p0, p1 = full.grids[0].parity(P), full.grids[1].parity(P)
+    assert (lazy._grids[2] is None) == bool(np.all(p0 == p1))
+    cell = full.grids[0].cell
+    assert cell[0] == pytest.approx(cell[1], rel=0.05)          # square cells
