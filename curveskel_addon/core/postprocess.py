@@ -463,9 +463,13 @@ FOLD_COS = -0.9
 FOLD_MIN_LENGTH = 2.0
 
 
-def fold_joints(joints: np.ndarray, bones: np.ndarray, cos_max: float = FOLD_COS) -> np.ndarray:
+def fold_joints(joints: np.ndarray, bones: np.ndarray, cos_max: float = FOLD_COS, *,
+                min_length: float = FOLD_MIN_LENGTH, overlap: bool = True,
+                short: float = np.inf) -> np.ndarray:
     """(J,) bool: joints of degree 2 where the chain doubles back (turn beyond ``cos_max``,
-    both bones longer than ``FOLD_MIN_LENGTH`` times the joint's radius).
+    both bones longer than ``min_length`` times the joint's radius, the shorter one shorter
+    than ``short`` times it and, with ``overlap``, one of them inside the silhouette of
+    another bone).
 
     The turn at j between (a, j) and (j, c) is the angle between ``x_j - x_a`` and
     ``x_c - x_j``; a straight chain turns 0, a hairpin almost 180 degrees.
@@ -486,10 +490,15 @@ def fold_joints(joints: np.ndarray, bones: np.ndarray, cos_max: float = FOLD_COS
     nu, nv = np.linalg.norm(u, axis=1), np.linalg.norm(v, axis=1)
     # A turn between bones shorter than twice the joint's radius is hidden in its ball (and the
     # direction of a near-zero bone is noise): not a fold.
-    r = FOLD_MIN_LENGTH * np.abs(joints[mid, 3])
+    r = min_length * np.abs(joints[mid, 3])
     ok = (nu > r) & (nv > r) & (nu > 0) & (nv > 0)
+    if np.isfinite(short):
+        ok &= np.minimum(nu, nv) < short * np.abs(joints[mid, 3])
     cos = np.einsum("ij,ij->i", u, v) / np.where(ok, nu * nv, 1.0)
     sharp = np.flatnonzero(ok & (cos < cos_max))
+    if not overlap:
+        out[mid[sharp]] = True
+        return out
     # ... and one of its bones runs inside the silhouette of a bone elsewhere (not at j): the
     # chain doubles another part of the skeleton (a zig-zag across a flat part does not).
     from .quality import sd_round_cone
@@ -507,7 +516,9 @@ def fold_joints(joints: np.ndarray, bones: np.ndarray, cos_max: float = FOLD_COS
     return out
 
 
-def unfold_chains(pr: FitProblem, *, cos_max: float = FOLD_COS, max_rounds: int = 50) -> tuple[FitProblem, int]:
+def unfold_chains(pr: FitProblem, *, cos_max: float = FOLD_COS, max_rounds: int = 50,
+                  min_length: float = FOLD_MIN_LENGTH, overlap: bool = True,
+                  short: float = np.inf) -> tuple[FitProblem, int]:
     """Merge away every chain joint where the chain doubles back, whatever it costs in E.
 
     Why: E cannot see a fold. Where parts meet (a junction, a saddle) a chain that runs out
@@ -517,12 +528,15 @@ def unfold_chains(pr: FitProblem, *, cos_max: float = FOLD_COS, max_rounds: int 
     (:func:`fold_joints`); it is
     merged like :func:`simplify_chains` merges (vertices re-mapped to the merged bone or a
     neighbour), sharpest first, without the cost budget or the offset guard. Topology is kept
-    (no merge duplicates a bone). Returns (problem, joints merged).
+    (no merge duplicates a bone). ``min_length``, ``overlap``, ``short``: as in
+    :func:`fold_joints`.
+    Returns (problem, joints merged).
     """
     pr = pr.copy()
     merged = 0
     for _ in range(max_rounds):
-        folds = fold_joints(pr.joints, pr.bones, cos_max)
+        folds = fold_joints(pr.joints, pr.bones, cos_max, min_length=min_length, overlap=overlap,
+                            short=short)
         if not folds.any():
             break
         cand, cost, nbrs, cb, new = _merge_costs(pr, np.inf, only=folds)

@@ -40,6 +40,7 @@ import numpy as np
 from .energy import energy, sigma_terms
 from .problem import FitProblem
 from .medial import MedialBalls
+from .postprocess import FOLD_MIN_LENGTH, unfold_chains
 from .quality import InsideTest, bone_points
 
 __all__ = ["refine", "outside_samples", "split_bones", "pull_in_joints", "relocate_joints"]
@@ -418,6 +419,16 @@ def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
         res = repaired(pr)
         best = (res[1], energy(res[0]), res[0], res[2])
     pr, local = best[2], best[3]
+    # Last, short reversals: a chain joint where the chain turns back (> 154 degrees) with a
+    # bone too short for the fold rule (inside the joint's ball, e.g. at a junction); E does
+    # not mind, a rigger sees a bone pointing backwards. (Long zig-zags across a flat part
+    # stay: they explain it.) Merged if no more is then outside.
+    q, n_rev = unfold_chains(pr, min_length=0.0, overlap=False, short=FOLD_MIN_LENGTH)
+    if n_rev and fraction(q)[1] <= fraction(pr)[1]:
+        pr = q
+    else:
+        n_rev = 0
+    log["reversals"] = n_rev
     log["local"] = len(local["split"])
     log["split"] += local["split"]
     log["kept"] += [True] * len(local["split"])

@@ -8,10 +8,12 @@ from meshes import capsule, star
 
 def _joints_added_after_postprocess(meta) -> int:
     """Joints the stages after post-processing add: refinement splits (kept rounds), less the
-    folds merged away before it and the zero-length bones contracted at the end."""
+    folds merged away before it, the short reversals merged after it and the zero-length bones
+    contracted at the end."""
     r = meta.get("refine", {})
     split = sum(n for n, kept in zip(r.get("split", []), r.get("kept", [])) if kept)
-    return split - r.get("unfolded", 0) - meta.get("collapsed_joints", 0)
+    return (split - r.get("unfolded", 0) - r.get("reversals", 0)
+            - meta.get("collapsed_joints", 0))
 
 
 def test_switches_reach_the_pipeline():

@@ -231,6 +231,10 @@ def test_star_skeleton_has_no_fold():
     V, F = star()
     sk = skeletonize(V, F)
     assert not fold_joints(sk.joints, sk.bones).any()
+    # ... nor a short reversal at the junction (a bone pointing back inside the joint's ball):
+    # the refinement merged them (the first approximation of the star has two).
+    assert not fold_joints(sk.joints, sk.bones, min_length=0.0, overlap=False).any()
+    assert sk.meta["refine"]["reversals"] >= 1
     L = np.linalg.norm(sk.joints[sk.bones[:, 0], :3] - sk.joints[sk.bones[:, 1], :3], axis=1).sum()
     assert L < 1.15 * 16.0                           # four arms of 4: no long doubling back
 
