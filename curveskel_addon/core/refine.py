@@ -23,7 +23,9 @@ until inside, bones still cutting corners are split again, the new joint placed 
 two bones have the fewest points outside among points on the line through the cross-section's
 centre and the medial balls (:mod:`.medial`) touching the surface nearest the bone's outside
 points, and joints of bones still outside are relocated (:func:`relocate_joints`). These local
-rounds leave the rest of the skeleton as the solver put it.
+rounds leave the rest of the skeleton as the solver put it. Last, short reversals (a chain
+turning back by more than 154 degrees with a bone shorter than two radii, typically at a
+junction) are merged away when that leaves no more outside.
 
 Examples
 --------
@@ -366,7 +368,8 @@ def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
         ``split`` and ``kept`` (bones split per round, whether the round was kept; solved
         rounds first), ``local`` (how many of the rounds did not re-solve) and ``pulled_in``
         (joints moved per local round: outside joints pulled in, joints relocated by
-        :func:`relocate_joints`), ``energy`` (E at the start, then after each solved round).
+        :func:`relocate_joints`), ``energy`` (E at the start, then after each solved round),
+        ``reversals`` (short reversals merged at the end).
     """
     pr = pr.copy()
     inside = InsideTest(V, F)
