@@ -238,9 +238,9 @@ class SkeletonRun:
         pr = self.problem.copy()
         pr.joints, pr.bone, pr.t = st.joints, st.bone, st.t
         with self._timed("refine"):
-            # Folds first (a chain doubling back along another part), re-solved; then the
-            # bones that leave the mesh (the last word on containment).
-            # The first solved round of the refinement re-solves the unfolded skeleton too.
+            # Folds first (a chain doubling back along another part), then the bones that
+            # leave the mesh (the last word on containment); the refinement's first solve
+            # serves the unfolded skeleton too.
             pr, unfolded = unfold_chains(pr)
             out, self.refine_log = refine(pr, self.mesh.V, self.mesh.F,
                                           lambda q: self._solve(q, REFINE_ITERATIONS),

@@ -347,15 +347,20 @@ def _merge_costs(pr: FitProblem, max_offset: float = np.inf, only=None):
     return cand, cost, np.stack([a, c], 1), np.stack([b1, b2], 1), new
 
 
+def _neighbours_csr(bones, n_joints):
+    """``ptr`` (J+1,) and ``partner``: the joints next to joint x are ``partner[ptr[x]:ptr[x+1]]``
+    (in bone order; the array form of :func:`_incidence`)."""
+    ends = bones.ravel()
+    o = np.argsort(ends, kind="stable")
+    return np.searchsorted(ends[o], np.arange(n_joints + 1)), bones[:, ::-1].ravel()[o]
+
+
 def _independent(pr, cand, nbrs, order, cost, budget=np.inf, spent=0.0):
     """Merges to make in one round, taken in ``order`` while ``spent + cost`` stays within
     ``budget``, skipping any within the 2-ring of one already taken (the merge re-maps vertices
     onto bones at a and c, which must not change in the same round). Returns (acc, spent)."""
     blocked = np.zeros(len(pr.joints), bool)
-    ends = pr.bones.ravel()
-    o = np.argsort(ends, kind="stable")
-    ptr = np.searchsorted(ends[o], np.arange(len(pr.joints) + 1))
-    partner = pr.bones[:, ::-1].ravel()[o]           # the other joint of each incidence
+    ptr, partner = _neighbours_csr(pr.bones, len(pr.joints))
     nbr_of = lambda x: partner[ptr[x]:ptr[x + 1]]  # noqa: E731
     acc = []
     for k in order:
@@ -480,10 +485,7 @@ def fold_joints(joints: np.ndarray, bones: np.ndarray, cos_max: float = FOLD_COS
     mid = np.flatnonzero(deg == 2)
     if not mid.size:
         return out
-    ends = bones.ravel()
-    o = np.argsort(ends, kind="stable")
-    ptr = np.searchsorted(ends[o], np.arange(J + 1))
-    partner = bones[:, ::-1].ravel()[o]
+    ptr, partner = _neighbours_csr(bones, J)
     a, c = partner[ptr[mid]], partner[ptr[mid] + 1]
     u = joints[mid, :3] - joints[a, :3]
     v = joints[c, :3] - joints[mid, :3]
@@ -523,13 +525,12 @@ def unfold_chains(pr: FitProblem, *, cos_max: float = FOLD_COS, max_rounds: int 
 
     Why: E cannot see a fold. Where parts meet (a junction, a saddle) a chain that runs out
     along a neighbouring part and back lets overlapping bones explain the same vertices, which
-    E rewards; a rigger sees an arm rooted half-way along another arm. A fold is a
-    joint of degree 2 whose bones, both longer than its ball, turn by more than 154 degrees
-    (:func:`fold_joints`); it is
-    merged like :func:`simplify_chains` merges (vertices re-mapped to the merged bone or a
-    neighbour), sharpest first, without the cost budget or the offset guard. Topology is kept
-    (no merge duplicates a bone). ``min_length``, ``overlap``, ``short``: as in
-    :func:`fold_joints`.
+    E rewards; a rigger sees an arm rooted half-way along another arm. A fold is a joint of
+    degree 2 whose bones, both longer than its ball, turn by more than 154 degrees
+    (:func:`fold_joints`); it is merged like :func:`simplify_chains` merges (vertices
+    re-mapped to the merged bone or a neighbour), in joint order, non-adjacent ones together,
+    without the cost budget or the offset guard. Topology is kept (no merge duplicates a bone).
+    ``min_length``, ``overlap``, ``short``: as in :func:`fold_joints`.
     Returns (problem, joints merged).
     """
     pr = pr.copy()

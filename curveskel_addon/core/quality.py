@@ -628,11 +628,9 @@ class InsideTest:
             if not open_.size:
                 break
             votes[open_] += self._grid(k).parity(P[open_])
-            done_k = k + 1
-            # Decided: a majority either way, whatever the remaining rays say.
-            rest = n - done_k
-            undecided = (votes[open_] < need) & (votes[open_] + rest >= need)
-            open_ = open_[undecided]
+            # Still open: no majority yet, and the n - k - 1 rays left could still make one.
+            v = votes[open_]
+            open_ = open_[(v < need) & (v + n - k - 1 >= need)]
         return votes >= need
 
 

@@ -87,6 +87,21 @@ def outside_samples(joints, bones, inside: InsideTest, *, per_bone: int = PER_BO
     return t, ~ins[:nb].reshape(len(bones), per_bone), ~ins[nb:]
 
 
+def _segment_points(A, B, u):
+    """``u A + (1 - u) B`` for every ``u``: points (..., len(u), 3) on segments A -> B (..., 3)."""
+    return u[:, None] * A[..., None, :] + (1 - u)[:, None] * B[..., None, :]
+
+
+def _neighbour_mean(joints, bones):
+    """(J, 3) mean position of every joint's neighbours (0 for a joint without bones) and the
+    degrees (J,), from the bone list in both directions."""
+    J = len(joints)
+    ends, other = bones.ravel(), bones[:, ::-1].ravel()
+    deg = np.bincount(ends, minlength=J)
+    T = np.stack([np.bincount(ends, weights=joints[other, a], minlength=J) for a in range(3)], 1)
+    return T / np.maximum(deg, 1)[:, None], deg
+
+
 def split_bones(pr: FitProblem, split: np.ndarray, t_split: np.ndarray,
                 centroid=True) -> FitProblem:
     """Split bones at parameters, each with a new joint placed from the points it explains.
@@ -158,16 +173,12 @@ def pull_in_joints(joints, bones, inside: InsideTest, *, steps: int = 8) -> tupl
     """
     joints = np.array(joints, np.float64)
     bones = np.asarray(bones, np.int64).reshape(-1, 2)
-    J = len(joints)
     out = ~inside(joints[:, :3])
-    deg = np.bincount(bones.ravel(), minlength=J)
+    T, deg = _neighbour_mean(joints, bones)
     L = np.flatnonzero(out & (deg > 0))
     if not L.size:
         return joints, 0
-    # Mean of the neighbours of every joint, from the bone list (both directions).
-    ends, other = bones.ravel(), bones[:, ::-1].ravel()
-    T = np.stack([np.bincount(ends, weights=joints[other, a], minlength=J) for a in range(3)], 1)
-    T = T[L] / deg[L, None]
+    T = T[L]
     lams = np.concatenate([0.5 ** np.arange(steps, 0, -1), [0.75, 1.0]])
     X = joints[L, None, :3] + lams[None, :, None] * (T[:, None, :] - joints[L, None, :3])
     ins = inside(X.reshape(-1, 3)).reshape(len(L), len(lams))
@@ -205,11 +216,9 @@ def relocate_joints(joints, bones, inside: InsideTest, balls: MedialBalls | None
     cand = np.unique(bones[bad > 0].ravel())
     if not cand.size:
         return joints, 0
-    deg = np.bincount(bones.ravel(), minlength=J)
+    T, deg = _neighbour_mean(joints, bones)
     ends, other = bones.ravel(), bones[:, ::-1].ravel()
     inc_bone = np.repeat(np.arange(Bn), 2)
-    T = np.stack([np.bincount(ends, weights=joints[other, a], minlength=J) for a in range(3)], 1)
-    T /= np.maximum(deg, 1)[:, None]
     lams = np.array([0.125, 0.25, 0.5, 0.75, 1.0])
     u = (np.arange(per_bone) + 0.5) / per_bone
     P_all, R_all, S_all, meta = [], [], [], []
@@ -220,15 +229,15 @@ def relocate_joints(joints, bones, inside: InsideTest, balls: MedialBalls | None
         R = np.full(len(P), joints[j, 3])
         if balls is not None:
             b_in = inc_bone[inc]
-            Q = (t[None, :, None] * joints[bones[b_in, 0], None, :3]
-                 + (1 - t)[None, :, None] * joints[bones[b_in, 1], None, :3])[out[b_in]]
+            Q = _segment_points(joints[bones[b_in, 0], :3], joints[bones[b_in, 1], :3], t)[out[b_in]]
             if len(Q):
-                mc, mr = balls.at_nearest(Q[np.linspace(0, len(Q) - 1, min(len(Q), per_bone)).astype(int)])
+                pick = np.linspace(0, len(Q) - 1, min(len(Q), per_bone)).astype(int)
+                mc, mr = balls.at_nearest(Q[pick])
                 P, R = np.concatenate([P, mc]), np.concatenate([R, mr])
         P = np.concatenate([joints[j:j + 1, :3], P])            # first: stay
         R = np.concatenate([joints[j:j + 1, 3], R])
         O = joints[other[inc], :3]                              # the far ends of its bones
-        S = u[None, None, :, None] * P[:, None, None, :] + (1 - u)[None, None, :, None] * O[None, :, None, :]
+        S = _segment_points(P[:, None, :], O[None, :, :], u)        # (candidates, bones, n, 3)
         P_all.append(P), R_all.append(R), S_all.append(S.reshape(-1, 3))
         meta.append((j, len(P), len(inc)))
     ins = inside(np.concatenate(S_all))
@@ -277,9 +286,9 @@ def _split_outside(pr, t, out, budget, inside: InsideTest | None = None, per_bon
     With ``inside`` (when no solver follows) it is placed instead on the line from the bone's
     own point there through that centre, where the two new bones have the fewest points
     outside: the centre of a curved part's cross-section can lie off to one side, the bone's
-    own point is outside. With ``balls`` the medial balls touching the surface nearest the centre
-    and nearest each outside point of the bone are candidates too (centre and radius): in a thin part the bone explains too few
-    points for a centroid. A bone is split only if its halves have fewer points outside than
+    own point is outside. With ``balls`` the medial balls touching the surface nearest the
+    centre and nearest each outside point of the bone are candidates too (centre and radius):
+    in a thin part the bone explains too few points for a centroid. A bone is split only if its halves have fewer points outside than
     it had. Without ``inside`` (a solve follows), also the ``fit`` fraction of the bones that
     explain the most of E (:func:`worst_fitting_bones`), in the middle.
     """
@@ -307,18 +316,16 @@ def _split_outside(pr, t, out, budget, inside: InsideTest | None = None, per_bon
     if balls is not None:
         # Medial balls at the surface nearest the centroid and nearest every outside point of
         # the bone (the bone's own point at t* stands in for its inside points).
-        Pb = t[None, :, None] * pr.joints[i, None, :3] + (1 - t)[None, :, None] * pr.joints[j, None, :3]
+        Pb = _segment_points(pr.joints[i, :3], pr.joints[j, :3], t)
         Pb = np.where(out[cand][:, :, None], Pb, X0[:, None, :])
         mc, mr = balls.at_nearest(np.concatenate([C, Pb.reshape(-1, 3)]))
         P = np.concatenate([P, mc[:k, None], mc[k:].reshape(k, -1, 3)], axis=1)
         radius = np.concatenate([radius, mr[:k, None], mr[k:].reshape(k, -1)], axis=1)
     u = (np.arange(per_bone) + 0.5) / per_bone
     # Points of the halves (i, new) and (new, j) for every candidate position: (k, L, 2, n, 3).
-    Xi = pr.joints[i, None, None, :3]
-    Xj = pr.joints[j, None, None, :3]
-    h1 = u[None, None, :, None] * Xi + (1 - u)[None, None, :, None] * P[:, :, None, :]
-    h2 = u[None, None, :, None] * P[:, :, None, :] + (1 - u)[None, None, :, None] * Xj
-    S = np.stack([h1, h2], axis=2)
+    Xi = np.broadcast_to(pr.joints[i, None, :3], P.shape)
+    Xj = np.broadcast_to(pr.joints[j, None, :3], P.shape)
+    S = np.stack([_segment_points(Xi, P, u), _segment_points(P, Xj, u)], axis=2)
     bad = (~inside(S.reshape(-1, 3))).reshape(k, P.shape[1], -1).sum(axis=2)
     best = bad.argmin(axis=1)                      # first minimum: the smallest move
     better = bad[np.arange(k), best] < out[cand].sum(axis=1)
@@ -341,7 +348,8 @@ def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
     move outside joints in, split and relocate joints without re-solving, ``local_rounds``
     times.
 
-    A round is kept only if less of the skeleton is outside afterwards (the solver's
+    A solved round is kept if less of the skeleton is outside afterwards, or else if after the
+    local repair it has no more outside and a lower E than its start would have (the solver's
     containment term approximates the surface and can be wrong in parts thinner than its
     blending radius). The rounds without a solve keep the rest of the skeleton as it is and
     place each new joint from the points it explains: they finish the corners the solver
@@ -383,8 +391,8 @@ def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
         o = outside_samples(q.joints, q.bones, inside, per_bone=per_bone)[1]
         return o, (float(o.mean()) if o.size else 0.0)
 
-    def repaired(q):
-        o, f = fraction(q)
+    def repaired(q, o_f=None):
+        o, f = fraction(q) if o_f is None else o_f
         return _local_rounds(q, o, f, t, inside, balls, fraction, max_joints, local_rounds, per_bone)
 
     best = None                   # (outside after repair, E, problem, local log) of the choice
@@ -397,9 +405,10 @@ def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
         trial = solve(trial)
         log["split"].append(n)
         log["energy"].append(energy(trial))
-        cand = repaired(trial)
+        out_t, frac_t = fraction(trial)
+        cand = repaired(trial, (out_t, frac_t))
         e_cand = energy(cand[0])
-        if fraction(trial)[1] < frac:
+        if frac_t < frac:
             keep = True                   # less outside even before the repair
         else:
             # Judged after the local repair both would get: the solver may leave a few more
@@ -414,21 +423,21 @@ def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
         if not keep:
             break
         best = (cand[1], e_cand, cand[0], cand[2])
-        pr, solved = trial, True
-        out, frac = fraction(pr)
+        pr, solved, out, frac = trial, True, out_t, frac_t
     if best is None or not solved:
         if not solved:
             pr = solve(pr)
         res = repaired(pr)
         best = (res[1], energy(res[0]), res[0], res[2])
-    pr, local = best[2], best[3]
+    frac_end, _, pr, local = best
     # Last, short reversals: a chain joint where the chain turns back (> 154 degrees) with a
     # bone too short for the fold rule (inside the joint's ball, e.g. at a junction); E does
     # not mind, a rigger sees a bone pointing backwards. (Long zig-zags across a flat part
     # stay: they explain it.) Merged if no more is then outside.
     q, n_rev = unfold_chains(pr, min_length=0.0, overlap=False, short=FOLD_MIN_LENGTH)
-    if n_rev and fraction(q)[1] <= fraction(pr)[1]:
-        pr = q
+    frac_q = fraction(q)[1] if n_rev else np.inf
+    if frac_q <= frac_end:
+        pr, frac_end = q, frac_q
     else:
         n_rev = 0
     log["reversals"] = n_rev
@@ -436,8 +445,7 @@ def refine(pr: FitProblem, V, F, solve: Callable[[FitProblem], FitProblem], *,
     log["split"] += local["split"]
     log["kept"] += [True] * len(local["split"])
     log["pulled_in"] = local["pulled_in"]
-    _, out, _ = outside_samples(pr.joints, pr.bones, inside, per_bone=per_bone)
-    log["outside_after"] = float(out.mean()) if out.size else 0.0
+    log["outside_after"] = frac_end
     return pr, log
 
 
