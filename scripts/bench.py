@@ -30,7 +30,10 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "meshes"
+#: Shared data (meshes, reference skeletons); CURVESKEL_SHARED overrides (e.g. for a copy of the
+#: repository checked out elsewhere).
+SHARED_DIR = Path(os.environ.get("CURVESKEL_SHARED", ROOT.parent / "shared"))
+SHARED = SHARED_DIR / "meshes"
 DOC = ROOT / "docs" / "benchmarks.md"
 OUT = ROOT / ".bench"
 sys.path.insert(0, str(ROOT))
@@ -56,6 +59,32 @@ METHODS = ["curveskel", "curveskel-paper", "curveskel-initial", "skeletor-wavefr
 PEER_PACKAGES = {"skeletor-wavefront": "skeletor", "skeletor-clusters": "skeletor",
                  "pygel-msls": "pygel3d"}
 TARGETS = {"inside": 0.98, "joints": 300, "recon_ratio_mean": 0.7}
+#: Reference curve skeletons of the shared meshes (issue 10): ../shared/reference/<stem>.json
+REFERENCE = SHARED_DIR / "reference"
+#: Issue 10's targets (per mesh unless named *_mean / *_median; distances / D).
+SHAPE_TARGETS = {"topology": "exact", "inside": 0.98, "joints": 150, "recon_ratio": 1.25,
+                 "recon_ratio_mean": 0.8, "zigzag": 0.15, "folds": 0.0, "length": (0.85, 1.25),
+                 "to_ref": 0.02, "to_ref_median": 0.012, "from_ref": 0.025}
+
+
+def shape_marks(r: dict) -> dict:
+    """Whether one mesh's row meets each per-mesh target of issue 10 (name -> bool).
+
+    ``r`` holds ``joints, topology_match, inside, zigzag, folds, length_ratio, to_ref_mean,
+    from_ref_mean`` and ``recon_ratio`` (or ``recon_mean`` and ``mesh``, for CGAL's figure).
+    """
+    T = SHAPE_TARGETS
+    ratio = r.get("recon_ratio")
+    if ratio is None and "recon_mean" in r:
+        cg = CGAL.get(stem(str(r.get("mesh", ""))))
+        ratio = r["recon_mean"] / cg[0] if cg else None
+    lo, hi = T["length"]
+    return {"joints": r["joints"] <= T["joints"], "topology": bool(r["topology_match"]),
+            "inside": r["inside"] >= T["inside"],
+            "recon": ratio is None or ratio <= T["recon_ratio"],
+            "zigzag": r["zigzag"] <= T["zigzag"], "folds": r["folds"] <= T["folds"],
+            "length": lo <= r["length_ratio"] <= hi, "to_ref": r["to_ref_mean"] <= T["to_ref"],
+            "from_ref": r["from_ref_mean"] <= T["from_ref"]}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -97,7 +126,9 @@ def rss_now_mb() -> float:
 
 
 def stem(spec: str) -> str:
-    return spec.rsplit(".", 1)[0] if spec not in PROCEDURAL else spec
+    if spec in PROCEDURAL or "." not in spec:
+        return spec
+    return spec.rsplit(".", 1)[0]
 
 
 # ---------------------------------------------------------------------------------------------

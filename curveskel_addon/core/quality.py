@@ -70,7 +70,9 @@ from .vertex_area import vertex_areas
 __all__ = ["quality", "sd_round_cone", "silhouette_sdf", "point_triangle_distance",
            "mesh_distance", "winding_number", "sample_surface", "sample_silhouette_boundary", "inside_mesh", "InsideTest",
            "bone_points", "closest_mapping", "energy_measures", "skeleton_topology",
-           "mesh_topology"]
+           "mesh_topology", "bbox_diagonal", "curve_arrays", "segment_points", "curve_points",
+           "segment_segment_distance", "turn_angles", "close_bone_pairs", "fold_pairs",
+           "curve_measures", "curve_distances", "shape_measures"]
 
 #: Elements per temporary array in chunked pairwise evaluations (bounds memory to ~tens of MB).
 _CHUNK = 1 << 18
@@ -872,4 +874,444 @@ def quality(V, F, skeleton, *, n_samples=20000, seed=0, bone_samples=10) -> dict
     out["bones"] = int(len(bones))
     secs["topology"] = time.perf_counter() - t0
     out["measure_seconds"] = secs
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Shape of the curve (issue 10): against a reference curve skeleton, and on its own
+# ---------------------------------------------------------------------------------------------
+#: Sampling steps of the to/from-reference distances, as fractions of D: the measured curve is
+#: sampled every D/400 and compared with the other curve sampled every D/2000.
+SHAPE_COARSE_STEP = 1.0 / 400
+SHAPE_FINE_STEP = 1.0 / 2000
+#: A degree-2 joint zig-zags when its chain turns by more than this many degrees.
+ZIGZAG_DEGREES = 60.0
+#: A fold: two bones within FOLD_NEAR * D of each other, more than FOLD_FAR * D apart along the
+#: skeleton.
+FOLD_NEAR = 0.01
+FOLD_FAR = 0.1
+
+
+def bbox_diagonal(V, F=None) -> float:
+    """Diagonal of the bounding box of the vertices (only those used by ``F`` when given).
+
+    The normalising length ``D`` of every measure in this module.
+
+    Examples
+    --------
+    >>> bbox_diagonal(np.array([[0., 0, 0], [3, 4, 0], [9, 9, 9]]), np.array([[0, 1, 0]]))
+    5.0
+    """
+    V = np.asarray(V, dtype=np.float64).reshape(-1, 3)
+    if F is not None:
+        V = V[np.unique(np.asarray(F, dtype=np.int64))]
+    if len(V) == 0:
+        return 0.0
+    return float(np.linalg.norm(np.ptp(V, axis=0)))
+
+
+def curve_arrays(skeleton):
+    """Joint positions (J, 3) and bones (B, 2) of a skeleton given in any usual form.
+
+    Parameters
+    ----------
+    skeleton : Skeleton, object with ``joints``/``bones``, dict with those keys (e.g. a loaded
+        curveskel-skeleton/1 JSON), a ``(joints, bones)`` pair, or a path to a JSON file.
+        Joints may be (J, 3) or (J, 4) (the radius is ignored).
+
+    Returns
+    -------
+    X : (J, 3) float, bones : (B, 2) int
+        Bones joining a joint to itself are dropped.
+    """
+    import json
+    import os
+
+    if isinstance(skeleton, (str, os.PathLike)):
+        with open(skeleton) as fh:
+            skeleton = json.load(fh)
+    if isinstance(skeleton, dict):
+        joints, bones = skeleton["joints"], skeleton.get("bones", [])
+    elif isinstance(skeleton, (tuple, list)):
+        joints, bones = skeleton
+    else:
+        joints, bones = skeleton.joints, skeleton.bones
+    J = np.asarray(joints, dtype=np.float64)
+    J = J.reshape(len(J), -1) if J.size else np.zeros((0, 3))
+    X = np.ascontiguousarray(J[:, :3])
+    B = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
+    return X, B[B[:, 0] != B[:, 1]]
+
+
+def segment_points(A, B, step):
+    """Points every ``step`` (at most) along segments ``A[k] -> B[k]``, both ends included.
+
+    Segment ``k`` of length ``L`` gets ``n = max(1, ceil(L / step))`` equal intervals, i.e.
+    ``n + 1`` points (a joint shared by several segments appears once per segment).
+
+    Parameters
+    ----------
+    A, B : (s, 3) float
+    step : float, > 0
+
+    Returns
+    -------
+    P : (p, 3) float
+    owner : (p,) int
+        The segment of each point.
+
+    Examples
+    --------
+    >>> P, owner = segment_points(np.zeros((1, 3)), np.array([[1.0, 0, 0]]), 0.5)
+    >>> P[:, 0].tolist(), owner.tolist()
+    ([0.0, 0.5, 1.0], [0, 0, 0])
+    """
+    A = np.asarray(A, dtype=np.float64).reshape(-1, 3)
+    B = np.asarray(B, dtype=np.float64).reshape(-1, 3)
+    L = np.linalg.norm(B - A, axis=1)
+    n = np.maximum(1, np.ceil(L / step)).astype(np.int64)
+    owner = np.repeat(np.arange(len(A)), n + 1)
+    start = np.cumsum(n + 1) - (n + 1)
+    k = np.arange(owner.size) - np.repeat(start, n + 1)
+    t = k / np.repeat(n, n + 1)
+    return A[owner] + t[:, None] * (B[owner] - A[owner]), owner
+
+
+def curve_points(X, bones, step):
+    """Points every ``step`` along every bone (:func:`segment_points`); the joints if no bone."""
+    X = np.asarray(X, dtype=np.float64)[:, :3]
+    bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
+    if len(bones) == 0:
+        return X.copy()
+    return segment_points(X[bones[:, 0]], X[bones[:, 1]], step)[0]
+
+
+def segment_segment_distance(p1, q1, p2, q2):
+    """Exact distance between segments ``p1 q1`` and ``p2 q2``, row by row.
+
+    Closest points of two segments (Ericson, *Real-Time Collision Detection*, 5.1.9), with
+    degenerate (point) segments handled.
+
+    Parameters
+    ----------
+    p1, q1, p2, q2 : (n, 3) float
+
+    Returns
+    -------
+    (n,) float
+
+    Examples
+    --------
+    >>> o, x = np.zeros((1, 3)), np.array([[1.0, 0, 0]])
+    >>> float(segment_segment_distance(o, x, np.array([[0.5, 1, -1]]), np.array([[0.5, 1, 1]]))[0])
+    1.0
+    """
+    p1, q1, p2, q2 = (np.asarray(x, dtype=np.float64).reshape(-1, 3) for x in (p1, q1, p2, q2))
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a, e = _dot(d1, d1), _dot(d2, d2)
+    f, c, b = _dot(d2, r), _dot(d1, r), _dot(d1, d2)
+    tiny = 1e-30
+    den = a * e - b * b
+    safe = lambda x: np.where(x > tiny, x, 1.0)  # noqa: E731
+    # s on the infinite line pair (0 when parallel), clamped; then t, and s again if t clamps
+    s = np.where(den > tiny * np.maximum(a * e, tiny), np.clip((b * f - c * e) / safe(den), 0, 1), 0.0)
+    t = (b * s + f) / safe(e)
+    s = np.where(t < 0, np.clip(-c / safe(a), 0, 1), np.where(t > 1, np.clip((b - c) / safe(a), 0, 1), s))
+    t = np.clip(t, 0, 1)
+    # point segments: the point's projection on the other segment
+    s = np.where(a <= tiny, 0.0, np.where(e <= tiny, np.clip(-c / safe(a), 0, 1), s))
+    t = np.where(e <= tiny, 0.0, np.where(a <= tiny, np.clip(f / safe(e), 0, 1), t))
+    return np.linalg.norm(p1 + s[:, None] * d1 - (p2 + t[:, None] * d2), axis=1)
+
+
+def turn_angles(X, bones):
+    """Turning angle (degrees) of the chain at every degree-2 joint.
+
+    At a joint ``j`` whose two bones lead to ``a`` and ``b`` the angle between ``x_j - x_a`` and
+    ``x_b - x_j``: 0 for a straight chain, 180 where it doubles back. Joints with a zero-length
+    bone are skipped.
+
+    Parameters
+    ----------
+    X : (J, 3) float
+    bones : (B, 2) int
+
+    Returns
+    -------
+    joints : (k,) int
+        The degree-2 joints measured.
+    angles : (k,) float
+        Degrees in [0, 180].
+
+    Examples
+    --------
+    >>> X = np.array([[0., 0, 0], [1, 0, 0], [1, 1, 0]])
+    >>> turn_angles(X, np.array([[0, 1], [1, 2]]))[1].round(6).tolist()
+    [90.0]
+    """
+    X = np.asarray(X, dtype=np.float64)[:, :3]
+    bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
+    bones = bones[bones[:, 0] != bones[:, 1]]
+    if len(bones) < 2:
+        return np.zeros(0, np.int64), np.zeros(0)
+    # every (joint, other end) pair; a degree-2 joint's two entries are adjacent after sorting
+    me = bones.ravel()
+    other = bones[:, ::-1].ravel()
+    order = np.argsort(me, kind="stable")
+    me, other = me[order], other[order]
+    deg = np.bincount(me, minlength=len(X))
+    first = np.flatnonzero((deg[me] == 2) & np.concatenate([[True], me[1:] != me[:-1]]))
+    j, a, b = me[first], other[first], other[first + 1]
+    u, w = X[j] - X[a], X[b] - X[j]
+    nu, nw = np.linalg.norm(u, axis=1), np.linalg.norm(w, axis=1)
+    scale = max(float(np.linalg.norm(np.ptp(X, axis=0))), 1e-300)
+    ok = (nu > 1e-12 * scale) & (nw > 1e-12 * scale)
+    cos = _dot(u[ok], w[ok]) / (nu[ok] * nw[ok])
+    return j[ok], np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def close_bone_pairs(X, bones, dist):
+    """Pairs of distinct bones whose segments pass within ``dist`` of each other (``< dist``).
+
+    Candidates come from a KD-tree on points sampled every ``dist`` along the bones (two
+    segments within ``dist`` have samples within ``2 dist``), then the exact segment-segment
+    distance decides. No O(B^2) pass.
+
+    Parameters
+    ----------
+    X : (J, 3) float
+    bones : (B, 2) int
+    dist : float, > 0
+
+    Returns
+    -------
+    pairs : (k, 2) int
+        Bone indices, ``pairs[:, 0] < pairs[:, 1]``, sorted.
+    d : (k,) float
+        Their distances.
+    """
+    X = np.asarray(X, dtype=np.float64)[:, :3]
+    bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
+    if len(bones) < 2 or not dist > 0:
+        return np.zeros((0, 2), np.int64), np.zeros(0)
+    A, B = X[bones[:, 0]], X[bones[:, 1]]
+    total = float(np.linalg.norm(B - A, axis=1).sum())
+    step = max(dist, total / 200_000)          # bound the number of samples
+    P, owner = segment_points(A, B, step)
+    # nearest samples to the closest points are within step / 2 each
+    pp = cKDTree(P).query_pairs(dist + step, output_type="ndarray")
+    if len(pp) == 0:
+        return np.zeros((0, 2), np.int64), np.zeros(0)
+    bp = np.sort(owner[pp], axis=1)
+    bp = bp[bp[:, 0] != bp[:, 1]]
+    if len(bp) == 0:
+        return np.zeros((0, 2), np.int64), np.zeros(0)
+    bp = np.unique(bp, axis=0)
+    d = segment_segment_distance(A[bp[:, 0]], B[bp[:, 0]], A[bp[:, 1]], B[bp[:, 1]])
+    keep = d < dist
+    return bp[keep], d[keep]
+
+
+def fold_pairs(X, bones, D, *, near=FOLD_NEAR, far=FOLD_FAR):
+    """Bone pairs that pass within ``near * D`` of each other but are ``> far * D`` apart along
+    the skeleton (a chain doubling back, a criss-cross). Pairs in different connected parts of
+    the skeleton do not count.
+
+    The distance along the skeleton between two bones is the shortest path (bone lengths as
+    weights) between an end of one and an end of the other; bones sharing a joint are 0 apart.
+    Shortest paths run (``scipy.sparse.csgraph.dijkstra``, limited to ``far * D``) only from the
+    ends of bones in close pairs.
+
+    Parameters
+    ----------
+    X : (J, 3) float
+    bones : (B, 2) int
+    D : float
+        The normalising length (mesh bounding-box diagonal).
+    near, far : float
+        Fractions of D.
+
+    Returns
+    -------
+    (k, 2) int
+        Bone index pairs (smaller first).
+    """
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    X = np.asarray(X, dtype=np.float64)[:, :3]
+    bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
+    pairs, _ = close_bone_pairs(X, bones, near * D)
+    if len(pairs) == 0:
+        return pairs
+    e1, e2 = bones[pairs[:, 0]], bones[pairs[:, 1]]
+    share = np.any(e1[:, :, None] == e2[:, None, :], axis=(1, 2))
+    pairs, e1, e2 = pairs[~share], e1[~share], e2[~share]
+    if len(pairs) == 0:
+        return pairs
+    n = len(X)
+    # bone graph (duplicate bones once), with a tiny floor so zero-length bones still connect
+    key = np.unique(np.sort(bones, axis=1), axis=0)
+    w = np.linalg.norm(X[key[:, 1]] - X[key[:, 0]], axis=1) + 1e-12 * D
+    G = csr_matrix((np.r_[w, w], (np.r_[key[:, 0], key[:, 1]], np.r_[key[:, 1], key[:, 0]])),
+                   shape=(n, n))
+    _, comp = connected_components(G, directed=False)
+    same = comp[e1[:, 0]] == comp[e2[:, 0]]
+    pairs, e1, e2 = pairs[same], e1[same], e2[same]
+    if len(pairs) == 0:
+        return pairs
+    src, inv = np.unique(e1, return_inverse=True)
+    inv = inv.reshape(-1, 2)
+    limit = far * D * (1 + 1e-9)
+    g = np.full(len(pairs), np.inf)
+    step = max(1, _CHUNK // max(n, 1))
+    for s0 in range(0, len(src), step):            # chunks of sources bound the dense rows
+        Dm = dijkstra(G, directed=False, indices=src[s0:s0 + step], limit=limit)
+        for a in (0, 1):
+            rows = inv[:, a] - s0
+            ok = (rows >= 0) & (rows < len(Dm))
+            for b in (0, 1):
+                g[ok] = np.minimum(g[ok], Dm[rows[ok], e2[ok, b]])
+    return pairs[g > far * D]
+
+
+def curve_measures(joints, bones=None, D=None, *, turn=ZIGZAG_DEGREES, near=FOLD_NEAR,
+                   far=FOLD_FAR) -> dict:
+    """Shape measures of a curve skeleton on its own (no reference, no mesh): zig-zag and folds.
+
+    Parameters
+    ----------
+    joints : (J, 3|4) float, or any skeleton form of :func:`curve_arrays` (then ``bones=None``)
+    bones : (B, 2) int
+    D : float, optional
+        The normalising length (the mesh's bounding-box diagonal, :func:`bbox_diagonal`); the
+        skeleton's own bounding-box diagonal if omitted (folds then depend on the skeleton only).
+    turn : float
+        Degrees beyond which a degree-2 joint counts as a zig-zag.
+    near, far : float
+        Fold thresholds, fractions of D (see :func:`fold_pairs`).
+
+    Returns
+    -------
+    dict
+        zigzag
+            Fraction of the degree-2 joints (with two non-zero bones) whose chain turns by more
+            than ``turn`` degrees (0 if there is none).
+        turn_p90
+            90th percentile of those turning angles, degrees.
+        folds
+            Number of :func:`fold_pairs` divided by the number of bones.
+        fold_pairs
+            That number.
+        length
+            Sum of bone lengths / D.
+        bones, degree2, leaves
+            Counts.
+
+    Examples
+    --------
+    >>> X = np.array([[0., 0, 0], [1, 0, 0], [2, 0, 0]])
+    >>> m = curve_measures(X, np.array([[0, 1], [1, 2]]), D=2.0)
+    >>> m["zigzag"], m["folds"], m["length"]
+    (0.0, 0.0, 1.0)
+    """
+    if bones is None:
+        X, bones = curve_arrays(joints)
+    else:
+        X, bones = curve_arrays((joints, bones))
+    if D is None:
+        D = float(np.linalg.norm(np.ptp(X, axis=0))) if len(X) else 0.0
+    _, ang = turn_angles(X, bones)
+    L = float(np.linalg.norm(X[bones[:, 1]] - X[bones[:, 0]], axis=1).sum()) if len(bones) else 0.0
+    folds = fold_pairs(X, bones, D, near=near, far=far) if D > 0 else np.zeros((0, 2), np.int64)
+    deg = np.bincount(bones.ravel(), minlength=len(X))
+    return {
+        "zigzag": float((ang > turn).mean()) if len(ang) else 0.0,
+        "turn_p90": float(np.percentile(ang, 90)) if len(ang) else 0.0,
+        "folds": float(len(folds) / max(len(bones), 1)),
+        "fold_pairs": int(len(folds)),
+        "length": L / D if D > 0 else float("nan"),
+        "bones": int(len(bones)),
+        "degree2": int((deg == 2).sum()),
+        "leaves": int((deg == 1).sum()),
+    }
+
+
+def curve_distances(ours, reference, D, *, coarse=SHAPE_COARSE_STEP, fine=SHAPE_FINE_STEP) -> dict:
+    """Distances between two curve skeletons, both ways, / D.
+
+    ``to_ref``: points every ``coarse * D`` along our bones, each to the nearest of the points
+    every ``fine * D`` along the reference's bones; ``from_ref``: the reverse (reference sampled
+    coarsely, ours finely). The fine sampling's error is at most ``fine / 2`` (D/4000).
+
+    Parameters
+    ----------
+    ours, reference : skeleton in any form of :func:`curve_arrays`
+    D : float
+    coarse, fine : float
+        Sampling steps, fractions of D.
+
+    Returns
+    -------
+    dict
+        ``to_ref_mean``, ``to_ref_p95``, ``to_ref_max``, ``from_ref_mean``, ``from_ref_p95``,
+        ``from_ref_max``.
+    """
+    X, b = curve_arrays(ours)
+    Xr, br = curve_arrays(reference)
+    if len(X) == 0 or len(Xr) == 0:
+        raise CurveSkelError("a skeleton without joints has no distance to another")
+    out = {}
+    for name, (Xa, ba, Xb, bb) in (("to_ref", (X, b, Xr, br)), ("from_ref", (Xr, br, X, b))):
+        P = curve_points(Xa, ba, coarse * D)
+        Q = curve_points(Xb, bb, fine * D)
+        d = cKDTree(Q).query(P)[0] / D
+        out[f"{name}_mean"] = float(d.mean())
+        out[f"{name}_p95"] = float(np.percentile(d, 95))
+        out[f"{name}_max"] = float(d.max())
+    return out
+
+
+def shape_measures(V, F, skeleton, reference=None, *, D=None) -> dict:
+    """All shape measures of issue 10 of a skeleton of mesh (V, F), against a reference curve.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    F : (m, 3) int
+        Only used for ``D`` (the bounding-box diagonal of the vertices ``F`` uses).
+    skeleton : Skeleton, ``(joints, bones)``, dict or JSON path (see :func:`curve_arrays`)
+    reference : the same forms, optional
+        E.g. ``../shared/reference/<mesh>.json``. Without it only the reference-free measures
+        are returned.
+    D : float, optional
+        Overrides the normalising length.
+
+    Returns
+    -------
+    dict
+        ``D``; :func:`curve_measures` (``zigzag``, ``turn_p90``, ``folds``, ``fold_pairs``,
+        ``length``, counts); with a reference also :func:`curve_distances` (``to_ref_*``,
+        ``from_ref_*``), ``length_ratio`` (our total bone length / the reference's) and
+        ``ref_length``, ``ref_leaves``.
+
+    Examples
+    --------
+    >>> m = shape_measures(V, F, sk, "../shared/reference/horse.json")      # doctest: +SKIP
+    >>> m["to_ref_mean"], m["from_ref_mean"], m["length_ratio"], m["zigzag"], m["folds"]  # doctest: +SKIP
+    """
+    if D is None:
+        D = bbox_diagonal(V, F)
+    if not D > 0:
+        raise CurveSkelError("the mesh has zero size")
+    X, b = curve_arrays(skeleton)
+    out = {"D": float(D)}
+    out.update(curve_measures(X, b, D))
+    if reference is not None:
+        Xr, br = curve_arrays(reference)
+        out.update(curve_distances((X, b), (Xr, br), D))
+        Lr = float(np.linalg.norm(Xr[br[:, 1]] - Xr[br[:, 0]], axis=1).sum()) / D if len(br) else 0.0
+        out["ref_length"] = Lr
+        out["length_ratio"] = out["length"] / Lr if Lr > 0 else float("nan")
+        out["ref_leaves"] = int((np.bincount(br.ravel(), minlength=len(Xr)) == 1).sum())
     return out
