@@ -7,6 +7,7 @@ Usage (from the repository root):
     .venv/bin/python scripts/shape_table.py --set smoothness=1 --set refine=0
     .venv/bin/python scripts/shape_table.py --paper --meshes horse spot --json out.json
     .venv/bin/python scripts/shape_table.py --ref-only     # the reference curves themselves
+    .venv/bin/python scripts/shape_table.py --save-dir out/sk   # keep the skeletons (JSON)
 
 ``--set NAME=VALUE`` overrides a field of ``SkeletonParams`` (value parsed to the type of the
 field's default; booleans as 1/0/true/false). Meshes run in a process pool (``--jobs``, default
@@ -74,7 +75,8 @@ def parse_sets(sets: list[str], paper: bool) -> dict:
     return out
 
 
-def measure(spec: str, overrides: dict, paper: bool, n_samples: int, ref_only: bool) -> dict:
+def measure(spec: str, overrides: dict, paper: bool, n_samples: int, ref_only: bool,
+            save_dir: str | None = None) -> dict:
     """One mesh: skeletonize (or take the reference), fast volumetric measures, shape measures."""
     import numpy as np
 
@@ -102,6 +104,9 @@ def measure(spec: str, overrides: dict, paper: bool, n_samples: int, ref_only: b
             joints, bones = np.asarray(sk.joints), np.asarray(sk.bones)
             meta = {"iterations": getattr(sk, "iterations", None)}
         sec = time.perf_counter() - t0
+        if save_dir and not ref_only:
+            Path(save_dir).mkdir(parents=True, exist_ok=True)
+            sk.save(str(Path(save_dir) / f"{name}.json"))
         D = bbox_diagonal(V, F)
         rng = np.random.default_rng(0)
         S = sample_surface(V, F, n_samples, rng)
@@ -189,6 +194,7 @@ def main(argv=None) -> None:
     ap.add_argument("--jobs", type=int, default=2, help="process pool size (default 2)")
     ap.add_argument("--samples", type=int, default=5000, help="surface samples for recon")
     ap.add_argument("--json", metavar="OUT", help="also write the rows (and settings) as JSON")
+    ap.add_argument("--save-dir", metavar="DIR", help="also save each skeleton as DIR/<mesh>.json")
     args = ap.parse_args(argv)
 
     overrides = parse_sets(args.set, args.paper)
@@ -211,7 +217,8 @@ def main(argv=None) -> None:
     for k, v in env.items():         # one BLAS thread per worker: the pool already fills the cores
         os.environ.setdefault(k, v)
     with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-        futs = {pool.submit(measure, s, overrides, args.paper, args.samples, args.ref_only): s
+        futs = {pool.submit(measure, s, overrides, args.paper, args.samples, args.ref_only,
+                            args.save_dir): s
                 for s in specs}
         for f in as_completed(futs):
             r = f.result()
