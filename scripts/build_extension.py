@@ -9,6 +9,10 @@ Steps: stage curveskel_addon/ with blender_manifest.toml beside its __init__.py 
 download the scipy wheels the manifest lists (pip download, cached in dist/wheel-cache/) into
 the staged ./wheels, then validate and build with Blender's own extension tool (blender_ext.py,
 shipped in the bpy wheel). Exit status 0 on success; the zips are printed one per line.
+
+The manifest lists wheels for Python 3.11 (Blender 4.2 - 5.0) and 3.13 (Blender 5.1+); each zip
+holds both for its platform and Blender installs the ones matching its Python. The platform and
+Python of a wheel are read from its file name, so any Python the bpy in use runs on can build.
 """
 
 from __future__ import annotations
@@ -25,19 +29,38 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "curveskel_addon"
 MANIFEST = ROOT / "blender_manifest.toml"
-#: Blender platform -> pip --platform tag of the wheel the manifest lists.
-PIP_PLATFORM = {
-    "windows-x64": "win_amd64",
-    "macos-x64": "macosx_10_13_x86_64",
-    "macos-arm64": "macosx_12_0_arm64",
-    "linux-x64": "manylinux2014_x86_64",
-}
-WHEEL_TAG = {  # the platform part of each wheel's file name
-    "windows-x64": "win_amd64",
-    "macos-x64": "macosx_10_13_x86_64",
-    "macos-arm64": "macosx_12_0_arm64",
-    "linux-x64": "manylinux2014_x86_64",
-}
+PLATFORMS = ("windows-x64", "macos-x64", "macos-arm64", "linux-x64")
+
+
+def wheel_tags(name: str) -> tuple[str, str, list[str]]:
+    """(python tag, abi tag, platform tags) of a wheel file name, e.g. ('cp313', 'cp313',
+    ['manylinux_2_17_x86_64', 'manylinux2014_x86_64'])."""
+    parts = Path(name).name.removesuffix(".whl").split("-")
+    if len(parts) not in (5, 6):
+        sys.exit(f"error: not a wheel file name: {name}")
+    return parts[-3], parts[-2], parts[-1].split(".")
+
+
+def wheel_platform(name: str) -> str:
+    """The Blender platform a wheel is for (the way Blender matches them: OS and architecture)."""
+    plat = wheel_tags(name)[2][0]
+    if plat == "win_amd64":
+        return "windows-x64"
+    if plat.startswith("macosx_") and plat.endswith("_x86_64"):
+        return "macos-x64"
+    if plat.startswith("macosx_") and plat.endswith("_arm64"):
+        return "macos-arm64"
+    if plat.startswith("manylinux") and plat.endswith("_x86_64"):
+        return "linux-x64"
+    sys.exit(f"error: wheel {name} is for none of the platforms {PLATFORMS}")
+
+
+def wheel_python(name: str) -> str:
+    """'3.13' for a cp313 wheel."""
+    tag = wheel_tags(name)[0]
+    if not re.fullmatch(r"cp3\d+", tag):
+        sys.exit(f"error: wheel {name}: expected a CPython tag like cp311, found {tag}")
+    return f"3.{tag[3:]}"
 
 
 def blender_ext() -> Path:
@@ -66,8 +89,7 @@ def stage(build_dir: Path, platforms: list[str] | None, with_wheels: bool) -> Pa
         text = re.sub(r"^platforms = \[.*?\]", "platforms = [" + ", ".join(f'"{p}"' for p in platforms) + "]",
                       text, count=1, flags=re.M | re.S)
     chosen = platforms or manifest["platforms"]
-    wheels = [w for w in manifest.get("wheels", [])
-              if any(WHEEL_TAG[p] in w for p in chosen)] if with_wheels else []
+    wheels = [w for w in manifest.get("wheels", []) if wheel_platform(w) in chosen] if with_wheels else []
     block = "wheels = [\n" + "".join(f'  "{w}",\n' for w in wheels) + "]" if wheels else ""
     text = re.sub(r"^wheels = \[.*?\]\n?", block + ("\n" if block else ""), text, count=1, flags=re.M | re.S)
     (build_dir / "blender_manifest.toml").write_text(text)
@@ -78,23 +100,28 @@ def stage(build_dir: Path, platforms: list[str] | None, with_wheels: bool) -> Pa
 
 
 def fetch_wheels(wheels: list[str], platforms: list[str], dest: Path) -> None:
-    """pip download each platform's wheel once (cache: dist/wheel-cache/<platform>/)."""
+    """pip download each listed wheel once (cache: dist/wheel-cache/<platform>/), for the Python
+    and platform its file name names, and copy it to ``dest``."""
     dest.mkdir(parents=True, exist_ok=True)
-    for p in platforms:
-        names = [Path(w).name for w in wheels if WHEEL_TAG[p] in w]
+    for name in (Path(w).name for w in wheels):
+        p = wheel_platform(name)
+        if p not in platforms:
+            continue
         cache = ROOT / "dist" / "wheel-cache" / p
-        for name in names:
-            if not (cache / name).is_file():
-                dist, version = name.split("-")[:2]
-                cmd = [sys.executable, "-m", "pip", "download", "--quiet", "--only-binary=:all:",
-                       "--no-deps", "--platform", PIP_PLATFORM[p], "--python-version", "3.11",
-                       f"{dist}=={version}", "-d", str(cache)]
-                print("downloading", name, file=sys.stderr)
-                subprocess.run(cmd, check=True)
-            if not (cache / name).is_file():
-                found = sorted(x.name for x in cache.glob("*.whl"))
-                sys.exit(f"error: pip did not fetch {name} (found: {found})")
-            shutil.copy2(cache / name, dest / name)
+        if not (cache / name).is_file():
+            dist, version = name.split("-")[:2]
+            _py_tag, abi_tag, plat_tags = wheel_tags(name)
+            cmd = [sys.executable, "-m", "pip", "download", "--quiet", "--disable-pip-version-check",
+                   "--only-binary=:all:", "--no-deps", "--implementation", "cp",
+                   "--python-version", wheel_python(name), "--abi", abi_tag,
+                   *(a for t in plat_tags for a in ("--platform", t)),
+                   f"{dist}=={version}", "-d", str(cache)]
+            print("downloading", name, file=sys.stderr)
+            subprocess.run(cmd, check=True)
+        if not (cache / name).is_file():
+            found = sorted(x.name for x in cache.glob("*.whl"))
+            sys.exit(f"error: pip did not fetch {name} (found: {found})")
+        shutil.copy2(cache / name, dest / name)
 
 
 def run_tool(*args: str) -> str:
@@ -127,7 +154,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--no-wheels", action="store_true",
                     help="bundle no wheels (the installed add-on uses the scipy of Blender's Python)")
-    ap.add_argument("--platform", action="append", choices=sorted(PIP_PLATFORM),
+    ap.add_argument("--platform", action="append", choices=PLATFORMS,
                     help="build for this platform only (repeatable; default: all in the manifest)")
     ap.add_argument("--no-split", action="store_true", help="one zip for all platforms")
     ap.add_argument("--out-dir", type=Path, default=ROOT / "dist")

@@ -1,12 +1,20 @@
-"""Build the extension zip, install it with Blender's extension API into a temporary user folder
-and run the operator from the installed copy (bl_ext.user_default.curveskel), in a fresh process."""
+"""Build the extension zips (scipy wheels for Python 3.11 and 3.13, four platforms), check that
+this Blender's validator accepts every one, install the linux-x64 zip with Blender's extension API
+into a temporary user folder and run the operator from the installed copy
+(bl_ext.user_default.curveskel), in a fresh process. Run by bpy 5.0.1 (.venv, Python 3.11) and
+bpy 5.2.3 (.venv313, Python 3.13) through scripts/test.sh, and bpy 4.2 by run_blender_tests_42.sh.
+The first run downloads the eight scipy wheels (about 300 MB) into dist/wheel-cache/."""
 
 import json
 import os
+import re
+import shutil
 import subprocess
 import sys
+import tempfile
 import textwrap
 import tomllib
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +22,18 @@ import pytest
 from meshes import capsule
 
 ROOT = Path(__file__).resolve().parents[2]
+PLATFORMS = {"windows-x64", "macos-x64", "macos-arm64", "linux-x64"}
+PY_TAG = f"cp3{sys.version_info.minor}"          # cp311 or cp313: the wheels this Blender takes
+
+
+def _pin(requirements: str, name: str) -> str:
+    text = (ROOT / requirements).read_text()
+    return re.search(rf"^{name}==(\S+)", text, re.M).group(1)
+
+
+def _wheel_version(name: str) -> tuple[int, ...]:
+    return tuple(int(x) for x in Path(name).name.split("-")[1].split("."))
+
 
 INSTALL_AND_RUN = textwrap.dedent('''
     import json, sys
@@ -42,6 +62,8 @@ INSTALL_AND_RUN = textwrap.dedent('''
     bpy.context.scene.collection.objects.link(ob)
     bpy.context.view_layer.objects.active = ob
     out["result"] = list(bpy.ops.curveskel.generate())
+    import scipy
+    out["scipy"] = [scipy.__version__, scipy.__file__]
     bpy.ops.curveskel.reset_settings()          # the sidebar's "Reset to Defaults"
     out["scene_spacing"] = round(bpy.context.scene.curveskel.spacing, 6)
     arm = bpy.data.objects.get("Capsule.skeleton")
@@ -58,15 +80,30 @@ INSTALL_AND_RUN = textwrap.dedent('''
 
 
 @pytest.fixture(scope="module")
-def built_zip(tmp_path_factory):
-    out = tmp_path_factory.mktemp("dist")
-    proc = subprocess.run([sys.executable, str(ROOT / "scripts" / "build_extension.py"), "--no-wheels",
-                           "--out-dir", str(out), "--build-dir", str(out / "stage")],
-                          capture_output=True, text=True, cwd=ROOT)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    zips = [Path(line) for line in proc.stdout.split()]
-    assert len(zips) == 1 and zips[0].is_file()
-    return zips[0]
+def built_zips():
+    """The four platform zips with wheels, built (and validated) by this Blender's tool."""
+    out = Path(tempfile.mkdtemp(prefix="curveskel-dist-"))
+    try:
+        proc = subprocess.run([sys.executable, str(ROOT / "scripts" / "build_extension.py"),
+                               "--out-dir", str(out), "--build-dir", str(out / "stage")],
+                              capture_output=True, text=True, cwd=ROOT)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        zips = {Path(line).name: Path(line) for line in proc.stdout.split()}
+        assert sorted(zips) == sorted(f"curveskel-0.1.0-{p.replace('-', '_')}.zip" for p in PLATFORMS)
+        yield zips
+    finally:
+        shutil.rmtree(out, ignore_errors=True)
+
+
+@pytest.fixture(scope="module")
+def built_zip(built_zips):
+    return built_zips["curveskel-0.1.0-linux_x64.zip"]
+
+
+def _blender_ext() -> Path:
+    import bpy
+
+    return Path(bpy.utils.system_resource("SCRIPTS")) / "addons_core" / "bl_pkg" / "cli" / "blender_ext.py"
 
 
 def test_manifest_fields():
@@ -74,20 +111,53 @@ def test_manifest_fields():
     assert m["id"] == "curveskel" and m["type"] == "add-on"
     assert m["license"] == ["SPDX:GPL-3.0-or-later"]
     assert m["blender_version_min"] == "4.2.0"
-    assert set(m["platforms"]) == {"windows-x64", "macos-x64", "macos-arm64", "linux-x64"}
+    assert "blender_version_max" not in m        # none without a known incompatibility
+    assert set(m["platforms"]) == PLATFORMS
     assert len(m["tagline"]) <= 64
     wheels = [Path(w).name for w in m["wheels"]]
-    assert len(wheels) == 4 and all(w.startswith("scipy-1.15.3-cp311-cp311-") for w in wheels)
-    assert not any("numpy" in w or "trimesh" in w for w in m["wheels"])
+    assert not any("numpy" in w or "trimesh" in w for w in wheels)
+    cp311 = [w for w in wheels if "-cp311-cp311-" in w]
+    cp313 = [w for w in wheels if "-cp313-cp313-" in w]
+    assert len(cp311) == len(cp313) == 4 and len(wheels) == 8
+    # the tests run on the scipy each Blender gets from the zip
+    assert all(w.startswith(f"scipy-{_pin('requirements.txt', 'scipy')}-") for w in cp311)
+    assert all(w.startswith(f"scipy-{_pin('requirements-313.txt', 'scipy')}-") for w in cp313)
+    # Blender 4.2.0-4.2.12 ignore the Python tag and install the highest version: it must be cp311
+    assert _wheel_version(cp311[0]) > _wheel_version(cp313[0])
+    sys.path.insert(0, str(ROOT / "scripts"))
+    try:
+        from build_extension import wheel_platform
+    finally:
+        sys.path.remove(str(ROOT / "scripts"))
+    assert {wheel_platform(w) for w in cp311} == {wheel_platform(w) for w in cp313} == PLATFORMS
+
+
+def test_validator_accepts_every_zip(built_zips):
+    tool = _blender_ext()
+    assert tool.is_file(), tool
+    for name, z in built_zips.items():
+        proc = subprocess.run([sys.executable, str(tool), "validate", str(z)], capture_output=True, text=True)
+        assert proc.returncode == 0 and "Success" in proc.stdout, (name, proc.stdout, proc.stderr)
+        wheels = [n for n in zipfile.ZipFile(z).namelist() if n.endswith(".whl")]
+        assert sorted(n.split("-")[2] for n in wheels) == ["cp311", "cp313"], (name, wheels)
 
 
 def test_zip_layout(built_zip):
-    import zipfile
-
     names = zipfile.ZipFile(built_zip).namelist()
     assert "blender_manifest.toml" in names and "__init__.py" in names    # side by side at the top
     assert "core/pipeline.py" in names and "ops_generate.py" in names
     assert not any("__pycache__" in n or n.endswith(".pyc") for n in names)
+
+
+def test_no_wheels_build_stages_a_manifest_without_wheels(tmp_path):
+    sys.path.insert(0, str(ROOT / "scripts"))
+    try:
+        from build_extension import stage
+    finally:
+        sys.path.remove(str(ROOT / "scripts"))
+    staged = stage(tmp_path / "stage", None, with_wheels=False)
+    m = tomllib.loads((staged / "blender_manifest.toml").read_text())
+    assert "wheels" not in m and (staged / "__init__.py").is_file()
 
 
 def test_install_and_run_from_installed_copy(built_zip, tmp_path):
@@ -114,3 +184,17 @@ def test_install_and_run_from_installed_copy(built_zip, tmp_path):
     assert out["disabled"]
     # installed under the temporary user folder, nowhere else
     assert list((tmp_path / "user").rglob("blender_manifest.toml"))
+    # Blender took the scipy wheel for its own Python (one, of the version the manifest pins for it)
+    infos = list((tmp_path / "user").rglob("scipy-*.dist-info"))
+    m = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
+    wanted = [Path(w).name for w in m["wheels"] if f"-{PY_TAG}-" in w and "linux" in w]
+    assert len(infos) == 1 and len(wanted) == 1, (infos, wanted)
+    assert infos[0].name == "-".join(wanted[0].split("-")[:2]) + ".dist-info"
+    assert f"Tag: {PY_TAG}-{PY_TAG}-" in (infos[0] / "WHEEL").read_text()
+    # ... and it loads in this Python with this Blender's numpy
+    site = infos[0].parent
+    probe = subprocess.run([sys.executable, "-c", "import sys; sys.path.insert(0, sys.argv[1]); "
+                            "import numpy, scipy, scipy.sparse.csgraph, scipy.sparse.linalg, scipy.spatial; "
+                            "print(scipy.__file__)",
+                            str(site)], capture_output=True, text=True, env=env, timeout=120)
+    assert probe.returncode == 0 and probe.stdout.startswith(str(site)), probe.stdout + probe.stderr
