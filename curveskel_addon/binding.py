@@ -1,13 +1,19 @@
-"""Bind a mesh to a curveskel armature: one vertex group per deforming bone + an Armature modifier.
+"""Bind a mesh to an armature as it is now: one vertex group per deforming bone + an Armature modifier.
+
+The armature is the truth once it exists: weights are computed for its deforming bones as they
+are at bind time (positions, names, parents; bones moved, deleted, renamed or added in Edit Mode
+included), never from the skeleton it was generated from. Any armature can be bound to.
 
 Binding is the one change curveskel makes to the user's mesh. What it adds is tracked on the mesh
-object (``curveskel_groups``: the vertex groups it made, ``curveskel_modifier``: its modifier), so
-a re-bind replaces exactly those and leaves the user's other groups and modifiers alone.
+object (``curveskel_groups``: the vertex groups it made, ``curveskel_modifier``: its modifier, the
+pointer property ``curveskel_armature_object``: the armature), so a re-bind replaces exactly those and
+leaves the user's other groups and modifiers alone. Groups of bones that no longer exist are
+removed; groups Blender renamed with a bone are taken over.
 
-Weights come from ``core.skin_weights`` (method "MAPPING": the skeleton mapping blended at
-joints, then diffused a short distance over the surface to close seams) and are written through a
-bmesh deform layer (no per-vertex operator call), or from Blender's heat weights ("HEAT",
-``parent_set(type='ARMATURE_AUTO')``, slow on large meshes) for comparison. The mesh is never
+Weights ("SURFACE", the default) come from ``core.skin_weights.bone_weights`` (closest bone
+restricted to its connected patch of the surface, blended at joints, smoothed along the surface)
+and are written through a bmesh deform layer (no per-vertex operator call); or from Blender's heat
+weights ("HEAT", ``parent_set(type='ARMATURE_AUTO')``, slow on large meshes). The mesh is never
 re-parented: the Armature modifier alone binds it.
 """
 
@@ -19,17 +25,17 @@ import bmesh
 import bpy
 import numpy as np
 
-from .armature import is_curveskel_armature, layout_of
 from .core.errors import CurveSkelError
-from .core.skin_weights import project_on_bones, skin_weights, smooth_weights, smoothing_iterations
+from .core.skin_weights import bone_weights
 
-__all__ = ["bind_mesh", "unbind_mesh", "write_weights", "METHODS", "GROUPS_KEY", "MODIFIER_KEY",
-           "MODIFIER_NAME", "HEAT_SLOW_VERTICES"]
+__all__ = ["bind_mesh", "unbind_mesh", "write_weights", "armature_bones", "METHODS", "GROUPS_KEY",
+           "MODIFIER_KEY", "MODIFIER_NAME", "HEAT_SLOW_VERTICES", "POINTER"]
 
-METHODS = ("MAPPING", "HEAT")
+METHODS = ("SURFACE", "HEAT")
 GROUPS_KEY = "curveskel_groups"
 MODIFIER_KEY = "curveskel_modifier"
-ARMATURE_KEY = "curveskel_armature"
+ARMATURE_KEY = "curveskel_armature"      # legacy string property (name); now a pointer property
+POINTER = "curveskel_armature_object"    # Object.curveskel_armature_object (registration.py)
 MODIFIER_NAME = "CurveSkel Armature"
 #: Above this many vertices heat weights take seconds to minutes (about 15 s at 50k).
 HEAT_SLOW_VERTICES = 10_000
@@ -41,9 +47,46 @@ def _vertices(me) -> np.ndarray:
     return co.reshape(-1, 3).astype(np.float64)
 
 
-def unbind_mesh(mesh_obj) -> int:
+def _edges(me) -> np.ndarray:
+    e = np.empty(len(me.edges) * 2, dtype=np.int32)
+    me.edges.foreach_get("vertices", e)
+    return e.reshape(-1, 2).astype(np.int64)
+
+
+def armature_bones(arm_obj) -> dict:
+    """The bones of ``arm_obj`` as they are now (edit-mode changes included), armature space.
+
+    Returns ``{"names": [...], "heads": (R, 3), "tails": (R, 3), "parent": (R,), "deform": (R,)}``.
+    """
+    if arm_obj.mode == 'EDIT':
+        arm_obj.update_from_editmode()
+    bones = arm_obj.data.bones
+    R = len(bones)
+    H = np.empty(R * 3, np.float32)
+    T = np.empty(R * 3, np.float32)
+    D = np.empty(R, bool)
+    bones.foreach_get("head_local", H)
+    bones.foreach_get("tail_local", T)
+    bones.foreach_get("use_deform", D)
+    names = [b.name for b in bones]
+    index = {nm: k for k, nm in enumerate(names)}
+    parent = np.array([index[b.parent.name] if b.parent is not None else -1 for b in bones], np.int64)
+    return {"names": names, "heads": H.reshape(-1, 3).astype(np.float64),
+            "tails": T.reshape(-1, 3).astype(np.float64), "parent": parent, "deform": D}
+
+
+def _bound_armature(mesh_obj):
+    arm = getattr(mesh_obj, POINTER, None)
+    if arm is not None:
+        return arm
+    mod = mesh_obj.modifiers.get(mesh_obj.get(MODIFIER_KEY) or MODIFIER_NAME)
+    return mod.object if mod is not None and mod.type == 'ARMATURE' else None
+
+
+def unbind_mesh(mesh_obj, keep=()) -> int:
     """Remove the vertex groups and the modifier a previous bind made; return the modifier's index
-    in the stack (0 when there was none). The user's own groups and modifiers are not touched."""
+    in the stack (0 when there was none). The user's own groups and modifiers are not touched;
+    groups named in ``keep`` are left for the caller to replace."""
     index = 0
     mod_name = mesh_obj.get(MODIFIER_KEY)
     if mod_name:
@@ -53,36 +96,44 @@ def unbind_mesh(mesh_obj) -> int:
             mesh_obj.modifiers.remove(mod)
     for g in list(mesh_obj.get(GROUPS_KEY, [])):
         vg = mesh_obj.vertex_groups.get(g)
-        if vg is not None:
+        if vg is not None and g not in keep:
             mesh_obj.vertex_groups.remove(vg)
     for key in (GROUPS_KEY, MODIFIER_KEY, ARMATURE_KEY):
-        if key in mesh_obj:
+        if key in mesh_obj.keys():
             del mesh_obj[key]
+    if hasattr(mesh_obj, POINTER):
+        setattr(mesh_obj, POINTER, None)
     return index
 
 
 def write_weights(mesh_obj, group_names, index, weight) -> None:
-    """Write (n, k) weights into new vertex groups ``group_names`` through a bmesh deform layer.
+    """Write (n, k) weights into vertex groups ``group_names`` through a bmesh deform layer.
 
     Parameters
     ----------
     mesh_obj : bpy.types.Object
         A mesh object in object mode.
     group_names : list of str
-        One per column value of ``index``; groups are created in this order.
+        One per column value of ``index``; groups are created in this order (a group of that
+        name already there is emptied and reused).
     index : (n, k) int
         Position in ``group_names`` of each influence, -1 for none.
     weight : (n, k) float
     """
     me = mesh_obj.data
-    base = len(mesh_obj.vertex_groups)
+    gid = []
     for g in group_names:
+        vg = mesh_obj.vertex_groups.get(g)
+        if vg is not None:
+            mesh_obj.vertex_groups.remove(vg)
         vg = mesh_obj.vertex_groups.new(name=g)
         if vg.name != g:
             raise CurveSkelError(f"vertex group name '{g}' is taken")
+        gid.append(vg.index)
+    gid = np.asarray(gid, np.int64)
     n = len(index)
     k = int((index >= 0).sum(axis=1).max()) if n else 0
-    gidx = np.where(index[:, :k] >= 0, index[:, :k] + base, -1)
+    gidx = np.where(index[:, :k] >= 0, gid[np.maximum(index[:, :k], 0)] if len(gid) else -1, -1)
     bm = bmesh.new()
     try:
         bm.from_mesh(me)
@@ -100,55 +151,51 @@ def write_weights(mesh_obj, group_names, index, weight) -> None:
     me.update()
 
 
-def _edges(me) -> np.ndarray:
-    e = np.empty(len(me.edges) * 2, dtype=np.int32)
-    me.edges.foreach_get("vertices", e)
-    return e.reshape(-1, 2).astype(np.int64)
-
-
 def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, smooth: float = 0.5,
-              method: str = "MAPPING") -> dict:
-    """Skin ``mesh_obj`` to the curveskel armature ``arm_obj``.
+              method: str = "SURFACE") -> dict:
+    """Skin ``mesh_obj`` to the armature ``arm_obj`` as it is now.
 
     Parameters
     ----------
     mesh_obj : bpy.types.Object
         Mesh object in object mode.
     arm_obj : bpy.types.Object
-        Armature made by :func:`armature.build_armature`.
+        Any armature object (a curveskel result or not; edited or not).
     skeleton : Skeleton, optional
-        Skeleton the armature was built from; its mapping is used when it has one entry per mesh
-        vertex. Otherwise (or when None) every vertex is mapped to the closest point on the bones.
+        Not used (kept for callers of the old signature): the weights always come from the
+        armature's current bones, which are as fast to use as the skeleton's mapping.
     blend : float in [0, 0.5]
-        Blend width at joints, as a fraction of bone length (MAPPING only).
+        Blend width at joints, as a fraction of bone length (SURFACE only).
     smooth : float >= 0
-        Radius over which weights are then diffused along the surface, as a fraction of the
-        skeleton's median joint radius (closes seams where the mapping jumps between branches;
-        at most 30 steps). 0 keeps the weights exactly as the mapping gives them (MAPPING only).
-    method : {"MAPPING", "HEAT"}
-        Skeleton-mapping weights (default), or Blender's heat weights (slow on large meshes).
+        Diffusion of the weights along the surface, as a fraction of the median vertex-to-bone
+        distance (at most 30 steps); 0 keeps the blended weights (SURFACE only).
+    method : {"SURFACE", "HEAT"}
+        Surface-respecting weights from the bones (default), or Blender's heat weights (slow on
+        large meshes). "MAPPING" is accepted as the old name of "SURFACE".
 
     Returns
     -------
     dict
-        ``method``, ``vertices``, ``groups``, ``mapping`` ("skeleton" or "closest"),
-        ``max_influences``, ``unweighted`` (vertices with no weight), ``seconds``,
+        ``method``, ``vertices``, ``groups``, ``bones``, ``mapping`` ("bones" or "heat"),
+        ``relabelled``, ``max_influences``, ``unweighted`` (vertices with no weight), ``seconds``,
         ``weights_seconds``, ``warnings`` (list of str).
 
     Raises
     ------
     CurveSkelError
-        Wrong object types, the mesh in edit mode, a vertex group name already used by the user,
-        or heat weighting failing.
+        Wrong object types, the mesh in edit mode, no deforming bone, a vertex group named like a
+        bone that the user made before the first bind, or heat weighting failing.
     """
     t0 = time.perf_counter()
     method = method.upper()
+    if method == "MAPPING":
+        method = "SURFACE"
     if method not in METHODS:
         raise CurveSkelError(f"unknown weight method {method!r}; choose one of {', '.join(METHODS)}")
     if mesh_obj is None or mesh_obj.type != 'MESH':
         raise CurveSkelError("bind: the object to bind must be a mesh")
-    if not is_curveskel_armature(arm_obj):
-        raise CurveSkelError(f"bind: '{getattr(arm_obj, 'name', arm_obj)}' is not a curveskel armature")
+    if arm_obj is None or arm_obj.type != 'ARMATURE':
+        raise CurveSkelError(f"bind: '{getattr(arm_obj, 'name', arm_obj)}' is not an armature")
     if not smooth >= 0:
         raise CurveSkelError(f"bind: smooth must be >= 0, got {smooth}")
     if mesh_obj.mode != 'OBJECT':
@@ -157,64 +204,46 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, smooth: 
     n = len(me.vertices)
     warnings: list[str] = []
 
-    lay = layout_of(arm_obj)
-    deform = [b.name for b in arm_obj.data.bones if b.use_deform]
-    missing = [nm for nm in lay.names if nm not in arm_obj.data.bones]
-    if missing:
-        raise CurveSkelError(f"bind: armature '{arm_obj.name}' lacks bone(s) {', '.join(missing[:5])}: "
-                             "generate it again")
+    bones = armature_bones(arm_obj)
+    deform_names = [nm for nm, d in zip(bones["names"], bones["deform"]) if d]
+    if not deform_names:
+        raise CurveSkelError(f"bind: armature '{arm_obj.name}' has no deforming bone")
     own = set(mesh_obj.get(GROUPS_KEY, []))
-    clash = [g.name for g in mesh_obj.vertex_groups if g.name in deform and g.name not in own]
-    if clash:
-        raise CurveSkelError(f"bind: the mesh already has vertex group(s) named like bones "
-                             f"({', '.join(clash[:5])}); rename them first")
-    stack_index = unbind_mesh(mesh_obj)
+    rebind = _bound_armature(mesh_obj) is not None or bool(own)
+    if not rebind:
+        clash = [g.name for g in mesh_obj.vertex_groups if g.name in set(deform_names)]
+        if clash:
+            raise CurveSkelError(f"bind: the mesh already has vertex group(s) named like bones "
+                                 f"({', '.join(clash[:5])}); rename them first")
+    # bound before: groups named like the current bones are ours (Blender renames a bone's
+    # group with the bone), groups of bones that no longer exist go
+    stack_index = unbind_mesh(mesh_obj, keep=set(deform_names))
+    for nm in deform_names:
+        vg = mesh_obj.vertex_groups.get(nm)
+        if vg is not None and rebind:
+            mesh_obj.vertex_groups.remove(vg)
 
-    fig = {"method": method, "vertices": n, "armature": arm_obj.name, "warnings": warnings}
-    if method == "MAPPING":
+    fig = {"method": method, "vertices": n, "armature": arm_obj.name, "warnings": warnings,
+           "bones": len(deform_names)}
+    if method == "SURFACE":
         tw = time.perf_counter()
-        joints = np.asarray(arm_obj["curveskel_joints"], dtype=np.float64).reshape(-1, 4)
-        bones = np.asarray(arm_obj["curveskel_bones"], dtype=np.int64).reshape(-1, 2)
-        use_sk = (skeleton is not None and len(skeleton.bone) == n and skeleton.bones.shape == bones.shape
-                  and np.array_equal(skeleton.bones, bones))
-        if use_sk:
-            bone, t = skeleton.bone, skeleton.t
-            fig["mapping"] = "skeleton"
-        else:
-            # vertices into the armature's space (the skeleton's space)
-            M = np.array(arm_obj.matrix_world.inverted() @ mesh_obj.matrix_world)
-            P = _vertices(me) @ M[:3, :3].T + M[:3, 3]
-            bone, t, _ = project_on_bones(P, joints, bones)
-            fig["mapping"] = "closest"
-            if skeleton is not None:
-                warnings.append("the skeleton's mapping does not match the mesh's vertices: "
-                                "mapped each vertex to its closest bone instead")
-        index, weight = skin_weights(lay, bone, t, blend=blend)
-        fig["smooth_iterations"] = 0
-        if smooth > 0:
-            E = _edges(me)
-            Pm = _vertices(me)
-            h = float(np.mean(np.linalg.norm(Pm[E[:, 0]] - Pm[E[:, 1]], axis=1))) if len(E) else 0.0
-            scale = float(np.cbrt(abs(np.linalg.det(np.array(arm_obj.matrix_world.inverted()
-                                                             @ mesh_obj.matrix_world)[:3, :3]))))
-            radius = smooth * float(np.median(joints[:, 3])) / max(scale, 1e-300)
-            k = smoothing_iterations(radius, h)
-            ts = time.perf_counter()
-            if k:
-                index, weight = smooth_weights(index, weight, E, iterations=k)
-            fig["smooth_iterations"] = k
-            fig["smooth_seconds"] = time.perf_counter() - ts
-        groups = [lay.names[r] for r in range(lay.n_bones)]
-        # only groups that receive weight, in armature order
-        used = np.zeros(lay.n_bones, bool)
-        used[index[index >= 0]] = True
-        remap = np.full(lay.n_bones, -1, np.int64)
-        remap[used] = np.arange(used.sum())
-        groups = [g for g, u in zip(groups, used) if u]
+        # vertices into the armature's space
+        M = np.array(arm_obj.matrix_world.inverted() @ mesh_obj.matrix_world)
+        P = _vertices(me) @ M[:3, :3].T + M[:3, 3]
+        index, weight, info = bone_weights(P, None, bones["heads"], bones["tails"], bones["parent"],
+                                           bones["deform"], blend=blend, smooth=smooth,
+                                           edges=_edges(me))
+        fig.update(info)
+        fig["mapping"] = "bones"
+        # one group per deforming bone, named as the bone, in armature order
+        deform_ids = np.flatnonzero(bones["deform"])
+        remap = np.full(len(bones["names"]), -1, np.int64)
+        remap[deform_ids] = np.arange(len(deform_ids))
         col = np.where(index >= 0, remap[np.maximum(index, 0)], -1)
         fig["mapping_seconds"] = time.perf_counter() - tw
         tw = time.perf_counter()
-        write_weights(mesh_obj, groups, col, weight)
+        write_weights(mesh_obj, deform_names, col, weight)
+        groups = deform_names
         fig["weights_seconds"] = time.perf_counter() - tw
         fig["max_influences"] = int((index >= 0).sum(axis=1).max()) if n else 0
         fig["unweighted"] = int(np.sum(weight.sum(axis=1) <= 0))
@@ -222,16 +251,16 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, smooth: 
         fig["smooth"] = float(smooth)
         mod = mesh_obj.modifiers.new(MODIFIER_NAME, 'ARMATURE')
     else:
-        groups, mod = _heat_weights(mesh_obj, arm_obj, deform, warnings)
+        groups, mod = _heat_weights(mesh_obj, arm_obj, deform_names, warnings)
         fig["mapping"] = "heat"
         fig["weights_seconds"] = time.perf_counter() - t0
         if n > HEAT_SLOW_VERTICES:
             warnings.append(f"heat weights are slow on large meshes ({n} vertices); "
-                            "the skeleton-mapping method is much faster")
+                            "the surface method is much faster")
         fig["max_influences"], fig["unweighted"] = _influence_counts(mesh_obj, set(groups))
         if fig["unweighted"]:
             warnings.append("Blender's heat weighting found no solution for some bones (common on "
-                            "very small, thin or self-intersecting meshes): use the skeleton-mapping method")
+                            "very small, thin or self-intersecting meshes): use the surface method")
 
     mod.object = arm_obj
     mod.use_vertex_groups = True
@@ -241,7 +270,8 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, smooth: 
         mesh_obj.modifiers.move(idx, min(stack_index, len(mesh_obj.modifiers) - 1))
     mesh_obj[GROUPS_KEY] = list(groups)
     mesh_obj[MODIFIER_KEY] = mod.name
-    mesh_obj[ARMATURE_KEY] = arm_obj.name
+    if hasattr(mesh_obj, POINTER):
+        setattr(mesh_obj, POINTER, arm_obj)
     fig["groups"] = len(groups)
     if fig.get("unweighted"):
         warnings.append(f"{fig['unweighted']} vertices got no weight")
@@ -297,7 +327,7 @@ def _heat_weights(mesh_obj, arm_obj, deform, warnings):
     return groups, mod
 
 
-def benchmark_bind(vertices: int = 100_000, *, bones: int = 20, method: str = "MAPPING",
+def benchmark_bind(vertices: int = 100_000, *, bones: int = 20, method: str = "SURFACE",
                    use_mapping: bool = True) -> dict:
     """Time :func:`bind_mesh` on a tube of about ``vertices`` vertices with a chain of ``bones``.
 

@@ -5,51 +5,58 @@ from __future__ import annotations
 import bpy
 from bpy.props import EnumProperty, FloatProperty, StringProperty
 
-from .armature import is_curveskel_armature
-from .binding import bind_mesh
+from . import results
+from .binding import POINTER, bind_mesh
 from .core.errors import CurveSkelError
 
-__all__ = ["CURVESKEL_OT_bind", "CLASSES", "bind_targets"]
+__all__ = ["CURVESKEL_OT_bind", "CLASSES", "bind_targets", "METHOD_ITEMS"]
+
+METHOD_ITEMS = (
+    ("SURFACE", "Surface", "Each vertex follows the bone of the body part it lies on (closest bone "
+     "restricted to its connected patch of the surface), blended at joints, smoothed along the "
+     "surface (fast)"),
+    ("HEAT", "Heat (Blender)", "Blender's automatic heat weights (slow on large meshes)"),
+)
 
 
 def bind_targets(context, armature_name: str = ""):
     """(mesh, armature, problem) for binding.
 
-    The mesh is the active object, or the selected mesh when the active object is the armature
+    The mesh is the active object, or the selected mesh when the active object is an armature
     (Blender's usual "select the mesh, then the armature" order). The armature is, in order: the
-    one named ``armature_name``, a selected curveskel armature, the result made from the mesh
-    ("<mesh>.skeleton" in the CurveSkel collection).
+    one named ``armature_name``, a selected armature, the armature the mesh was bound to, the
+    armature generated from it. Pointers only: no scan of all objects (this runs in poll).
     """
     ob = context.active_object
     sel = list(getattr(context, "selected_objects", []) or [])
     mesh = None
     if ob is not None and ob.type == 'MESH':
         mesh = ob
-    elif is_curveskel_armature(ob):
+    elif ob is not None and ob.type == 'ARMATURE':
         meshes = [o for o in sel if o.type == 'MESH']
         mesh = meshes[0] if len(meshes) == 1 else None
     if mesh is None:
-        return None, None, "Make a mesh active (or select it, then its curveskel armature)"
+        return None, None, "Make a mesh active (or select it, then an armature)"
     arm = None
     if armature_name:
         arm = bpy.data.objects.get(armature_name)
-        if not is_curveskel_armature(arm):
-            return mesh, None, f"'{armature_name}' is not a curveskel armature"
+        if arm is None or arm.type != 'ARMATURE':
+            return mesh, None, f"'{armature_name}' is not an armature"
     if arm is None:
-        arms = [o for o in sel if is_curveskel_armature(o)]
+        arms = [o for o in sel if o.type == 'ARMATURE']
         arm = arms[0] if len(arms) == 1 else None
     if arm is None:
-        cand = [o for o in bpy.data.objects
-                if is_curveskel_armature(o) and o.get("curveskel_source") == mesh.name]
-        arm = next((o for o in cand if o.name == f"{mesh.name}.skeleton"), cand[0] if cand else None)
+        arm = getattr(mesh, POINTER, None)
     if arm is None:
-        return mesh, None, f"No curveskel armature for '{mesh.name}': generate one first, or select one"
+        arm = results.find_result(mesh)["armature"]
+    if arm is None:
+        return mesh, None, f"No armature for '{mesh.name}': generate one first, or select one"
     return mesh, arm, None
 
 
 class CURVESKEL_OT_bind(bpy.types.Operator):
-    """Bind the mesh to its curveskel armature: an Armature modifier and one vertex group per bone.
-    Re-binding replaces only what curveskel added before"""
+    """Bind the mesh to its armature as it is now (edited bones included): an Armature modifier and
+    one vertex group per deforming bone. Re-binding replaces only what curveskel added before"""
 
     bl_idname = "curveskel.bind"
     bl_label = "Bind Mesh to Skeleton"
@@ -57,13 +64,10 @@ class CURVESKEL_OT_bind(bpy.types.Operator):
 
     armature: StringProperty(
         name="Armature", default="",
-        description="CurveSkel armature to bind to (empty: the selected one, or the mesh's own result)")
-    method: EnumProperty(
-        name="Weights", default="MAPPING",
-        items=(("MAPPING", "Skeleton Mapping", "Weights from the skeleton mapping: each vertex follows "
-                "its bone, blended near joints (fast)"),
-               ("HEAT", "Heat (Blender)", "Blender's automatic heat weights, for comparison "
-                "(slow on large meshes)")))
+        description="Armature to bind to (empty: the selected one, the one the mesh is bound to, "
+        "or the mesh's CurveSkel result)")
+    method: EnumProperty(name="Weights", default="SURFACE", items=METHOD_ITEMS,
+                         description="How the vertex weights are computed")
     blend: FloatProperty(
         name="Blend Width", default=0.25, min=0.0, max=0.5, subtype='FACTOR',
         description="Width of the smooth blend at each joint, as a fraction of the bone's length")
@@ -79,15 +83,14 @@ class CURVESKEL_OT_bind(bpy.types.Operator):
     smooth: FloatProperty(
         name="Surface Smoothing", default=0.5, min=0.0, soft_max=2.0,
         description="Diffuse the weights along the surface over this fraction of the typical "
-        "limb radius, closing seams where neighbouring surface parts follow different branches "
-        "(0: weights exactly from the skeleton mapping)")
+        "limb radius (a bone's weights never reach a sibling limb; 0: no diffusion)")
 
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
         layout.prop(self, "method")
         col = layout.column()
-        col.active = self.method == "MAPPING"
+        col.active = self.method == "SURFACE"
         col.prop(self, "blend")
         col.prop(self, "smooth")
 
@@ -96,8 +99,8 @@ class CURVESKEL_OT_bind(bpy.types.Operator):
         if problem is not None:
             self.report({'ERROR'}, problem)
             return {'CANCELLED'}
-        if mesh.mode != 'OBJECT':
-            bpy.ops.object.mode_set(mode='OBJECT')
+        if context.mode != 'OBJECT':
+            bpy.ops.object.mode_set(mode='OBJECT')      # edit-mode bone changes are taken
         try:
             fig = bind_mesh(mesh, arm, None, blend=self.blend, smooth=self.smooth, method=self.method)
         except CurveSkelError as exc:

@@ -70,7 +70,7 @@ def build_result(context, src, skeleton, options: dict, *, live_silhouette=None,
     made = []
     # The previous result steps aside (renamed) so the new objects get the exact names; it is
     # deleted once the new result is complete, or renamed back if anything fails.
-    previous = {ob: ob.name for ob in results.previous_results(src.name, keep=(live_silhouette,))}
+    previous = {ob: ob.name for ob in results.previous_results(src, keep=(live_silhouette,))}
     for ob, name in previous.items():
         ob.name = name + ".previous"
     try:
@@ -79,9 +79,9 @@ def build_result(context, src, skeleton, options: dict, *, live_silhouette=None,
         mw = src.matrix_world.copy()
         arm = sil = None
         if options["make_armature"]:
-            arm = build_armature(context, skeleton, arm_name, coll, mw)
+            arm = build_armature(context, skeleton, arm_name, coll, mw, source=src)
             made.append(arm)
-            results.tag(arm, src.name, "armature")
+            results.tag(arm, src, "armature")
         if live_silhouette is not None:
             sil = live_silhouette
             update_silhouette(sil, skeleton, roots=roots)
@@ -91,7 +91,7 @@ def build_result(context, src, skeleton, options: dict, *, live_silhouette=None,
             sil = build_silhouette(skeleton, sil_name, coll, mw, roots=roots,
                                    in_render=options["silhouette_in_render"])
             made.append(sil)
-            results.tag(sil, src.name, "silhouette")
+            results.tag(sil, src, "silhouette")
         params = {k: options[k] for k in PARAM_NAMES + ADVANCED_NAMES if k in options}
         for ob in (arm, sil):
             if ob is not None:
@@ -139,7 +139,7 @@ class LiveRun:
         self.silhouette = build_silhouette(first, sil_name, results.collection(context),
                                            src.matrix_world.copy(), roots=results.root_joints(first),
                                            in_render=in_render)
-        results.tag(self.silhouette, src.name, "silhouette")
+        results.tag(self.silhouette, src, "silhouette")
         self._steps = self.run.steps()
         self.state = None
         self._best = None                    # (E, Skeleton) of the lowest energy so far

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import bpy
 
-from . import ops_bind, ops_generate, panel, preferences, properties
+from . import ops_bind, ops_generate, panel, preferences, properties, results
 
 __all__ = ["CLASSES", "register", "unregister"]
 
@@ -24,7 +24,8 @@ def _type_properties():
     """(type, attribute, property) added at registration; built lazily (classes must exist)."""
     return ((bpy.types.Scene, "curveskel",
              bpy.props.PointerProperty(type=properties.CurveSkelSceneSettings,
-                                       name="CurveSkel", description="CurveSkel sidebar settings")),)
+                                       name="CurveSkel", description="CurveSkel sidebar settings")),
+            *results.pointer_properties())
 
 
 def register() -> None:

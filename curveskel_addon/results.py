@@ -1,9 +1,18 @@
 """Where results live and how they are found again: the "CurveSkel" collection, the names
 "<mesh>.skeleton" / "<mesh>.silhouette", replacing a previous result, figures as custom properties.
 
-Every result object carries the custom properties ``curveskel_source`` (source object name) and
-``curveskel_role`` ("armature" or "silhouette"); figures are plain custom properties
-(``ob["curveskel_..."]``), read with ``ob.get`` — the same on Blender 4.2 and 5.0.
+Results and their source are linked by pointer properties (registered on ``bpy.types.Object``
+by ``registration.py``), so renaming the mesh or a result keeps the link:
+
+``curveskel_source_object``      on a result: the mesh it was made from
+``curveskel_result_armature``    on the mesh: its armature
+``curveskel_result_silhouette``  on the mesh: its silhouette
+
+Every result object also carries the custom properties ``curveskel_source`` (the source's name
+when it was made, read only for files saved before the pointers) and ``curveskel_role``
+("armature" or "silhouette"); figures are plain custom properties (``ob["curveskel_..."]``), read
+with ``ob.get`` — the same on Blender 4.2 and 5.0. Lookups from the panel and the operators'
+``poll`` follow pointers and never scan ``bpy.data.objects``.
 """
 
 from __future__ import annotations
@@ -13,12 +22,17 @@ import json
 import bpy
 
 __all__ = ["COLLECTION_NAME", "FIGURE_KEYS", "collection", "result_names", "find_result",
-           "source_of", "previous_results", "remove_objects", "adopt_names", "tag", "store_figures",
-           "figures", "root_joints"]
+           "source_of", "source_object", "previous_results", "remove_objects", "adopt_names", "tag",
+           "store_figures", "figures", "root_joints", "pointer_properties", "SOURCE_POINTER",
+           "ARMATURE_POINTER", "SILHOUETTE_POINTER"]
 
 COLLECTION_NAME = "CurveSkel"
 SOURCE_KEY = "curveskel_source"
 ROLE_KEY = "curveskel_role"
+SOURCE_POINTER = "curveskel_source_object"
+ARMATURE_POINTER = "curveskel_result_armature"
+SILHOUETTE_POINTER = "curveskel_result_silhouette"
+_ROLE_POINTER = {"armature": ARMATURE_POINTER, "silhouette": SILHOUETTE_POINTER}
 #: Custom-property keys of the figures, with their labels in the panel.
 FIGURE_KEYS = {
     "curveskel_n_joints": "Joints",
@@ -29,6 +43,27 @@ FIGURE_KEYS = {
     "curveskel_iterations": "Iterations",
     "curveskel_seconds": "Seconds",
 }
+
+
+def pointer_properties():
+    """(type, attribute, property) of the Object pointers above and the binding's armature
+    pointer (``binding.POINTER``), for ``registration.py``."""
+    from .binding import POINTER
+
+    P = bpy.props.PointerProperty
+    O = bpy.types.Object
+    return ((O, SOURCE_POINTER, P(type=O, name="CurveSkel Source",
+                                  description="Mesh this CurveSkel result was made from")),
+            (O, ARMATURE_POINTER, P(type=O, name="CurveSkel Armature",
+                                    description="Armature CurveSkel made from this mesh")),
+            (O, SILHOUETTE_POINTER, P(type=O, name="CurveSkel Silhouette",
+                                      description="Silhouette CurveSkel made from this mesh")),
+            (O, POINTER, P(type=O, name="CurveSkel Bound Armature",
+                           description="Armature this mesh was bound to by CurveSkel")))
+
+
+def _pointer(ob, attr):
+    return getattr(ob, attr, None) if ob is not None else None
 
 
 def collection(context) -> bpy.types.Collection:
@@ -51,31 +86,62 @@ def result_names(source_name: str) -> tuple[str, str]:
     return f"{source_name}.skeleton", f"{source_name}.silhouette"
 
 
+def source_object(ob):
+    """The source mesh of a result object (by pointer), or ``ob`` itself when it is not a result."""
+    if ob is None:
+        return None
+    src = _pointer(ob, SOURCE_POINTER)
+    if src is not None:
+        return src
+    legacy = ob.get(SOURCE_KEY)
+    if legacy:
+        return bpy.data.objects.get(legacy)
+    return ob
+
+
 def source_of(ob) -> str | None:
     """Name of the source mesh of a result object, or the object's own name for a mesh that is
     not a result (so the panel finds the result from the source, the armature or the silhouette)."""
     if ob is None:
         return None
-    return ob.get(SOURCE_KEY) or ob.name
+    src = source_object(ob)
+    return src.name if src is not None else (ob.get(SOURCE_KEY) or ob.name)
 
 
-def find_result(source_name: str) -> dict:
-    """``{"armature": ob or None, "silhouette": ob or None}`` of the result made from ``source_name``."""
+def find_result(source) -> dict:
+    """``{"armature": ob or None, "silhouette": ob or None}`` of the result made from ``source``
+    (an object, or its name). Follows the source's pointers; results of files saved before them
+    are found by their names ("<source>.skeleton", "<source>.silhouette") and tag."""
+    src = bpy.data.objects.get(source) if isinstance(source, str) else source
+    name = source if isinstance(source, str) else getattr(source, "name", None)
     found = {"armature": None, "silhouette": None}
-    for ob in bpy.data.objects:
-        if ob.get(SOURCE_KEY) != source_name:
-            continue
-        role = ob.get(ROLE_KEY) or ("armature" if ob.type == 'ARMATURE' else "silhouette")
-        if role in found and found[role] is None:
+    for role, attr in _ROLE_POINTER.items():
+        ob = _pointer(src, attr)
+        if ob is not None and _pointer(ob, SOURCE_POINTER) == src:
             found[role] = ob
+    if name:
+        for role, cand in zip(("armature", "silhouette"), result_names(name)):
+            ob = bpy.data.objects.get(cand)
+            if (found[role] is None and ob is not None and _pointer(ob, SOURCE_POINTER) is None
+                    and ob.get(SOURCE_KEY) == name):
+                found[role] = ob
     return found
 
 
-def previous_results(source_name: str, keep=()) -> list:
-    """Every result object made from ``source_name`` except those in ``keep``."""
+def previous_results(source, keep=()) -> list:
+    """Every result object made from ``source`` (an object or its name) except those in ``keep``
+    (scans the objects once: for the operator's execute, not for poll or draw)."""
+    src = bpy.data.objects.get(source) if isinstance(source, str) else source
+    name = source if isinstance(source, str) else source.name
     keep_ptrs = {k.as_pointer() for k in keep if k is not None}
-    return [ob for ob in bpy.data.objects
-            if ob.get(SOURCE_KEY) == source_name and ob.as_pointer() not in keep_ptrs]
+    out = []
+    for ob in bpy.data.objects:
+        if ob.as_pointer() in keep_ptrs or ob == src:
+            continue
+        ptr = _pointer(ob, SOURCE_POINTER)
+        if (ptr is not None and ptr == src) or (ptr is None and ob.get(SOURCE_KEY) == name):
+            out.append(ob)
+    return out
 
 
 def remove_objects(objects) -> None:
@@ -99,9 +165,14 @@ def adopt_names(ob, name: str) -> None:
         ob.data.name = name
 
 
-def tag(ob, source_name: str, role: str) -> None:
-    ob[SOURCE_KEY] = source_name
+def tag(ob, source, role: str) -> None:
+    """Mark ``ob`` as the ``role`` result of ``source`` (an object, or its name)."""
+    src = bpy.data.objects.get(source) if isinstance(source, str) else source
+    ob[SOURCE_KEY] = src.name if src is not None else str(source)
     ob[ROLE_KEY] = role
+    if src is not None and hasattr(ob, SOURCE_POINTER):
+        setattr(ob, SOURCE_POINTER, src)
+        setattr(src, _ROLE_POINTER[role], ob)
 
 
 def store_figures(ob, skeleton, *, params: dict, stopped: bool = False) -> None:

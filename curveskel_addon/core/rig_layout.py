@@ -31,7 +31,8 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from .errors import CurveSkelError
 from .graph_root import central_joints
 
-__all__ = ["RigLayout", "rig_layout", "BLEND_NONE", "BLEND_SYMMETRIC", "BLEND_HUB"]
+__all__ = ["RigLayout", "rig_layout", "BLEND_NONE", "BLEND_SYMMETRIC", "BLEND_HUB", "MirrorPlane",
+           "mirror_plane", "Rig", "named_rig"]
 
 #: Blend modes at the end of a bone (see ``skin_weights``): no neighbour (a leaf, or the bone
 #: that owns a junction), a symmetric 50/50 blend at a chain joint, or a one-sided blend into
@@ -430,3 +431,407 @@ def rig_layout(joints, bones, *, root=None, up=(0.0, 0.0, 1.0), merge_tol=None) 
                      tail_mode=tail_mode, head_partner=head_partner, tail_partner=tail_partner,
                      joint_map=jmap, meta={"merge_tol": tol, "merged_bones": int(collapsed.sum()),
                                            "branches": int(len(starts)), "parts": int(C)})
+
+
+# == mirror plane and readable, mirrored names ========================================================
+@dataclass
+class MirrorPlane:
+    """A plane ``normal . x = offset`` (unit normal) about which a mesh is symmetric.
+
+    ``error``: mean distance of a mirrored vertex sample to the mesh's vertices, as a fraction of
+    the bounding-box diagonal.
+    """
+
+    normal: np.ndarray
+    offset: float
+    error: float
+
+    def signed_distance(self, P) -> np.ndarray:
+        return np.asarray(P, dtype=np.float64) @ self.normal - self.offset
+
+    def reflect(self, P) -> np.ndarray:
+        """Mirror image of points (..., 3)."""
+        P = np.asarray(P, dtype=np.float64)
+        return P - 2.0 * self.signed_distance(P)[..., None] * self.normal
+
+    def reflect_vector(self, v) -> np.ndarray:
+        v = np.asarray(v, dtype=np.float64)
+        return v - 2.0 * (v @ self.normal)[..., None] * self.normal
+
+
+def mirror_plane(V, *, tol: float = 0.01, sample: int = 2000, seed: int = 0, all_planes: bool = False):
+    """The mesh's best mirror plane, or None when no plane mirrors it within ``tol``.
+
+    Candidate normals are the three coordinate axes and the three principal axes of the vertices,
+    through their centroid; each candidate is refined by matching every sampled vertex to the
+    vertex nearest its mirror image (a few rounds: the normal is the main direction of
+    ``p - match``, the offset the mean of ``(p + match) / 2`` along it). A plane whose normal is
+    within 1 degree of a coordinate axis is snapped onto that axis. Among planes whose error is
+    within 25 % of the best (or below ``tol / 5``), a normal along local x is preferred
+    (Blender's X-Axis Mirror), then the lower error.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+        Vertex positions.
+    tol : float
+        Largest accepted error: mean distance of mirrored vertices to the mesh's vertices, as a
+        fraction of the bounding-box diagonal.
+    sample : int
+        Vertices used (a seeded random subset above this many).
+    all_planes : bool
+        Return every accepted (distinct) plane, best first, instead of the best one.
+
+    Returns
+    -------
+    MirrorPlane or None (a list of MirrorPlane with ``all_planes``)
+    """
+    from scipy.spatial import cKDTree
+
+    P = np.asarray(V, dtype=np.float64).reshape(-1, 3)
+    diag = float(np.linalg.norm(np.ptp(P, axis=0))) if len(P) else 0.0
+    if len(P) < 4 or diag <= 0:
+        return [] if all_planes else None
+    tree = cKDTree(P)
+    rng = np.random.default_rng(seed)
+    S = P if len(P) <= sample else P[rng.choice(len(P), sample, replace=False)]
+    c = S.mean(axis=0)
+    _, _, vt = np.linalg.svd(S - c, full_matrices=False)
+    cands = [np.eye(3)[k] for k in range(3)] + [vt[k] for k in range(3)]
+    found = []
+    for n in cands:
+        n = n / np.linalg.norm(n)
+        d = float(c @ n)
+        for _ in range(3):
+            R = S - 2.0 * (S @ n - d)[:, None] * n
+            _, nn = tree.query(R)
+            Q = P[nn]
+            D = S - Q
+            M = D.T @ D
+            if np.trace(M) <= 1e-20 * diag * diag:
+                break
+            w, v = np.linalg.eigh(M)
+            n_new = v[:, -1] * (1.0 if v[:, -1] @ n >= 0 else -1.0)
+            if n_new @ n < 0.9:          # not converging to this plane
+                break
+            n = n_new
+            d = float(np.mean((S + Q) @ n) / 2.0)
+        ax = int(np.argmax(np.abs(n)))
+        if abs(n[ax]) > np.cos(np.radians(1.0)):
+            n = np.sign(n[ax]) * np.eye(3)[ax]
+            R = S - 2.0 * (S @ n - c @ n)[:, None] * n
+            _, nn = tree.query(R)
+            d = float(np.mean((S + P[nn]) @ n) / 2.0)
+        if n[int(np.argmax(np.abs(n)))] < 0:
+            n = -n
+            d = -d
+        R = S - 2.0 * (S @ n - d)[:, None] * n
+        err = float(np.mean(tree.query(R)[0])) / diag
+        found.append(MirrorPlane(n, d, err))
+    best = min(p.error for p in found)
+    if best > tol:
+        return [] if all_planes else None
+    near = [p for p in found if p.error <= max(1.25 * best, 0.2 * tol)]
+    near.sort(key=lambda p: (-int(abs(p.normal[0]) > 0.999), p.error))
+    if not all_planes:
+        return near[0]
+    out = []
+    for p in near:          # distinct planes only
+        if not any(abs(p.normal @ q.normal) > 0.999 and abs(p.offset - q.offset) < 1e-3 * diag for q in out):
+            out.append(p)
+    return out
+
+
+@dataclass
+class Rig:
+    """Bones to create, in order (parents first), with readable, mirror-aware names.
+
+    Attributes
+    ----------
+    heads, tails, z_axis : (R, 3) float
+    names : list of str
+    parent : (R,) int, -1 for root bones
+    connect : (R,) bool
+    chain : (R,) int
+        Chain of each bone (-1 for root bones).
+    side : (R,) str
+        "L", "R" or "" (on the plane, unpaired, or no plane).
+    mirror : (R,) int
+        The mirrored bone of each bone (itself on the plane, -1 when it has none).
+    plane : MirrorPlane or None
+    """
+
+    heads: np.ndarray
+    tails: np.ndarray
+    z_axis: np.ndarray
+    names: list
+    parent: np.ndarray
+    connect: np.ndarray
+    chain: np.ndarray
+    side: np.ndarray
+    mirror: np.ndarray
+    plane: MirrorPlane | None = None
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def n_bones(self) -> int:
+        return len(self.heads)
+
+
+def _resample(pts, m):
+    """``m + 1`` points at equal arc-length fractions along the polyline ``pts``."""
+    pts = np.asarray(pts, dtype=np.float64)
+    if len(pts) == m + 1:
+        return pts.copy()
+    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    s = np.r_[0.0, np.cumsum(seg)]
+    if s[-1] <= 0:
+        return np.repeat(pts[:1], m + 1, axis=0)
+    u = np.linspace(0.0, s[-1], m + 1)
+    return np.stack([np.interp(u, s, pts[:, k]) for k in range(3)], 1)
+
+
+def _chain_distance(A, B):
+    """Mean distance between two polylines resampled at equal arc-length fractions."""
+    m = 16
+    return float(np.mean(np.linalg.norm(_resample(A, m) - _resample(B, m), axis=1)))
+
+
+def named_rig(lay: RigLayout, plane: MirrorPlane | None = None, *, pair_tol: float = 0.1,
+              central_tol: float = 0.05, up=(0.0, 0.0, 1.0)) -> Rig:
+    """The bones of ``lay`` with readable names, mirrored exactly about ``plane`` when given.
+
+    Naming scheme
+    -------------
+    - ``root`` (``root.NN`` for part NN when the skeleton has several parts): the root bones.
+    - A *chain* is a run of bones between junctions (``RigLayout.branch``). Position along a
+      chain from its root end: ``.01``, ``.02``, ...
+    - With a plane: two chains on opposite sides whose mirror images match (mean distance below
+      ``pair_tol`` of the chain's length, plus a few percent of the skeleton's size) are a pair,
+      ``limbK.L.PP`` and ``limbK.R.PP`` (``.L`` on the plane normal's positive side; Blender flips
+      ``.L``/``.R`` before a ``.NN`` number, so X-Axis Mirror and pose flipping find the pair).
+      Unpaired chains whose joints all lie within ``central_tol`` of the diagonal from the plane
+      are ``spineK.PP``; other unpaired chains ``chainK.PP``.
+    - Without a plane every chain is ``chainK.PP``.
+    - ``K`` counts chains of that kind from 1 in breadth-first order from the root, and is left out
+      when there is only one (``spine.01``).
+
+    Exact mirroring
+    ---------------
+    Central chains and the root joints are projected onto the plane (the root bones point along
+    ``up`` projected onto it). A pair's chains are resampled to the same number of bones (the
+    larger) at equal arc-length fractions and replaced by their mirrored mean, so the two are
+    exact mirror images, rolls included. A chain keeps its head on its parent's tail when that
+    point is still where its head belongs (same for both chains of a pair); otherwise its head
+    moves to the mirrored position and the bone is not connected (``use_connect`` False).
+
+    Parameters
+    ----------
+    lay : RigLayout
+    plane : MirrorPlane, optional
+    pair_tol, central_tol : float
+    up : (3,) float
+        Direction of the root bones.
+
+    Returns
+    -------
+    Rig
+    """
+    R0 = lay.n_bones
+    X = np.concatenate([lay.heads, lay.tails])
+    diag = float(np.linalg.norm(np.ptp(X, axis=0))) if len(X) > 1 else 1.0
+    diag = max(diag, 1e-12)
+    up = _unit(np.asarray(up, dtype=np.float64).reshape(3))
+    root_bones = [r for r in range(R0) if lay.parent[r] < 0]
+    # chains in order of their first bone (parents before children)
+    chains: dict[int, list[int]] = {}
+    for r in range(R0):
+        if lay.parent[r] >= 0:
+            chains.setdefault(int(lay.branch[r]), []).append(r)
+    order = sorted(chains, key=lambda c: chains[c][0])
+    for c in order:
+        chains[c].sort(key=lambda r: lay.position[r])
+    pts = {c: np.vstack([lay.heads[chains[c][0]][None], lay.tails[chains[c]]]) for c in order}
+    chain_of = np.full(R0, -1, np.int64)
+    for c in order:
+        chain_of[chains[c]] = c
+    parent_chain = {c: int(chain_of[lay.parent[chains[c][0]]]) for c in order}   # -1: under a root
+
+    kind = {c: "chain" for c in order}
+    partner: dict[int, int] = {}
+    side = {c: "" for c in order}
+    if plane is not None:
+        sd = {c: plane.signed_distance(pts[c][1:]) for c in order}
+        near_plane = {c: bool(np.abs(sd[c]).max() <= central_tol * diag) for c in order}
+        near_plane[-1] = True                                  # the root joints
+        length = {c: float(np.sum(np.linalg.norm(np.diff(pts[c], axis=0), axis=1))) for c in order}
+        costs = []
+        for i, a in enumerate(order):
+            for b in order[i + 1:]:
+                ma, mb = float(np.mean(sd[a])), float(np.mean(sd[b]))
+                if ma * mb >= 0:
+                    continue
+                cost = _chain_distance(pts[a], plane.reflect(pts[b]))
+                limit = pair_tol * max(length[a], length[b]) + 0.02 * diag
+                # the chains must lie mostly off the plane (else both are central)
+                if cost < limit and min(abs(ma), abs(mb)) > 0.5 * cost:
+                    costs.append((cost, a, b))
+        for cost, a, b in sorted(costs):
+            if a in partner or b in partner:
+                continue
+            pa, pb = parent_chain[a], parent_chain[b]
+            # a pair's parents are themselves a pair, the same chain, or both near the plane
+            if not (pa == pb or partner.get(pa) == pb or (near_plane[pa] and near_plane[pb]
+                                                          and pa not in partner and pb not in partner)):
+                continue
+            partner[a], partner[b] = b, a
+        for c in order:
+            if c in partner:
+                kind[c] = "limb"
+                side[c] = "L" if np.mean(sd[c]) > 0 else "R"
+            elif near_plane[c]:
+                kind[c] = "spine"
+
+    # -- new points per chain (parents first) ---------------------------------------------------------
+    new_pts: dict[int, np.ndarray] = {}
+    head_ok: dict[int, bool] = {}
+    root_head = {r: lay.heads[r].copy() for r in root_bones}
+    root_up = {r: up.copy() for r in root_bones}
+    if plane is not None:
+        for r in root_bones:
+            if abs(plane.signed_distance(lay.heads[r])) <= central_tol * diag:
+                root_head[r] = plane.reflect(lay.heads[r]) * 0.5 + lay.heads[r] * 0.5
+                u = plane.reflect_vector(up) * 0.5 + up * 0.5
+                root_up[r] = _unit(u) if np.linalg.norm(u) > 1e-6 else up
+
+    def anchor(c):
+        """Where chain c's head belongs now: its parent chain's new end, or its root's head."""
+        p = parent_chain[c]
+        first = chains[c][0]
+        if p < 0:
+            return root_head[int(lay.parent[first])]
+        return new_pts[p][-1]
+
+    for c in order:
+        if c in new_pts:
+            continue
+        P = pts[c].copy()
+        if kind[c] == "spine":
+            P = 0.5 * (P + plane.reflect(P))
+            new_pts[c] = P
+        elif kind[c] == "limb":
+            d = partner[c]
+            m = max(len(pts[c]), len(pts[d])) - 1
+            A, Bm = _resample(pts[c], m), plane.reflect(_resample(pts[d], m))
+            mean = 0.5 * (A + Bm)
+            new_pts[c], new_pts[d] = mean, plane.reflect(mean)
+        else:
+            new_pts[c] = P
+    for c in order:
+        # re-attach heads: connected where the (new) anchor is where the head belongs
+        a = anchor(c)
+        h = new_pts[c][0]
+        tol = max(1e-6 * diag, 1e-9)
+        if kind[c] == "limb":
+            d = partner[c]
+            ad = anchor(d)
+            ok = np.linalg.norm(plane.reflect(a) - ad) < tol and np.linalg.norm(a - h) < 0.05 * diag
+        elif kind[c] == "spine":
+            ok = abs(plane.signed_distance(a)) < tol and np.linalg.norm(a - h) < 0.05 * diag
+        else:
+            ok = np.linalg.norm(a - lay.heads[chains[c][0]]) < 0.05 * diag
+        if kind[c] == "chain" or ok:
+            new_pts[c][0] = a
+        head_ok[c] = bool(np.linalg.norm(new_pts[c][0] - a) < tol)
+
+    # -- names -------------------------------------------------------------------------------------------
+    counts = {"spine": 0, "limb": 0, "chain": 0}
+    number = {}
+    for c in order:
+        if kind[c] == "limb" and partner[c] in number:
+            number[c] = number[partner[c]]
+            continue
+        counts[kind[c]] += 1
+        number[c] = counts[kind[c]]
+
+    def chain_name(c):
+        k = kind[c]
+        base = k if counts[k] == 1 else f"{k}{number[c]}"
+        return f"{base}.{side[c]}" if side[c] else base
+
+    # -- bones -----------------------------------------------------------------------------------------
+    heads, tails, names, parent, connect, chain_arr, side_arr = [], [], [], [], [], [], []
+    new_root = {}
+    C = len(root_bones)
+    for k, r in enumerate(root_bones):
+        L = float(np.linalg.norm(lay.tails[r] - lay.heads[r]))
+        new_root[r] = len(heads)
+        heads.append(root_head[r])
+        tails.append(root_head[r] + root_up[r] * L)
+        names.append("root" if C == 1 else f"root.{k:02d}")
+        parent.append(-1)
+        connect.append(False)
+        chain_arr.append(-1)
+        side_arr.append("")
+    last_bone = {}
+    first_bone = {}
+    # creation order: parents first (chains are ordered so)
+    for c in order:
+        P = new_pts[c]
+        p = parent_chain[c]
+        par = new_root[int(lay.parent[chains[c][0]])] if p < 0 else last_bone[p]
+        wp = max(2, len(str(len(P) - 1)))
+        for k in range(len(P) - 1):
+            if k == 0:
+                first_bone[c] = len(heads)
+            heads.append(P[k])
+            tails.append(P[k + 1])
+            names.append(f"{chain_name(c)}.{k + 1:0{wp}d}")
+            parent.append(par)
+            connect.append(bool(k > 0 or (p >= 0 and head_ok[c])))
+            chain_arr.append(c)
+            side_arr.append(side[c])
+            par = len(heads) - 1
+        last_bone[c] = len(heads) - 1
+    heads = np.array(heads)
+    tails = np.array(tails)
+    parent = np.array(parent, np.int64)
+    R = len(heads)
+    # zero-length bones (a resampled or re-attached chain): nudge the tail along the chain
+    d = tails - heads
+    Ld = np.linalg.norm(d, axis=1)
+    tiny = Ld < max(1e-6 * diag, 1e-5)
+    if tiny.any():
+        tails[tiny] = heads[tiny] + up * max(1e-4 * diag, 1e-4)
+
+    # -- rolls: transported from the parent; the right side mirrors the left --------------------------
+    dd = _unit(tails - heads)
+    z = np.zeros((R, 3))
+    for r in range(R):
+        if parent[r] < 0:
+            ref = np.array([0.0, -1.0, 0.0]) if abs(up[2]) > 0.5 else np.array([0.0, 0.0, 1.0])
+            z[r] = _perpendicular(dd[r], ref)
+        elif parent[r] < C:
+            z[r] = _perpendicular(dd[r], up)
+        else:
+            z[r] = _transport(z[parent[r]], dd[parent[r]], dd[r])
+    mirror = np.full(R, -1, np.int64)
+    if plane is not None:
+        for r in range(C):
+            if abs(plane.signed_distance(heads[r])) < 1e-9 * diag + 1e-12:
+                mirror[r] = r
+        for c in order:
+            rows = np.arange(first_bone[c], last_bone[c] + 1)
+            if kind[c] == "spine":
+                mirror[rows] = rows
+            elif kind[c] == "limb":
+                d_ = partner[c]
+                mirror[rows] = np.arange(first_bone[d_], last_bone[d_] + 1)
+                if side[c] == "R":
+                    # Blender mirrors a bone's frame as (-Sx, Sy, Sz): its z-axis is reflected
+                    z[rows] = plane.reflect_vector(z[mirror[rows]])
+    return Rig(heads=heads, tails=tails, z_axis=z, names=names, parent=parent,
+               connect=np.array(connect, bool), chain=np.array(chain_arr, np.int64),
+               side=np.array(side_arr, dtype=object), mirror=mirror, plane=plane,
+               meta={"pairs": len(partner) // 2, "central": sum(kind[c] == "spine" for c in order),
+                     "chains": len(order)})

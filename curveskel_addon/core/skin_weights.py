@@ -1,6 +1,13 @@
-"""Skin weights from the skeleton mapping sigma (pure, vectorised).
+"""Skin weights (pure, vectorised): from the armature's bones as they are now
+(:func:`bone_weights`, what ``curveskel.bind`` uses), or from the skeleton mapping sigma
+(:func:`skin_weights`).
 
-Each vertex weighs its own bone; within ``blend`` (a fraction of the bone's length) of a joint it
+``bone_weights`` gives each vertex the bone of the part of the body it lies on: its closest bone,
+restricted to that bone's connected patch of the surface (:func:`surface_labels`), then blended at
+the joints as below and smoothed along the surface, keeping only a bone, its parent and its
+children per vertex (no weight on a sibling limb or across a gap).
+
+With sigma, each vertex weighs its own bone; within ``blend`` (a fraction of the bone's length) of a joint it
 is blended smoothly (smoothstep) with the neighbouring bone there:
 
 - at a chain joint (degree 2) the two bones meet 50/50 at the joint;
@@ -22,6 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from .errors import CurveSkelError
@@ -29,7 +37,7 @@ from .mapping import closest_on_bones
 from .rig_layout import BLEND_HUB, BLEND_SYMMETRIC, RigLayout
 
 __all__ = ["skin_weights", "smooth_weights", "smoothing_iterations", "smoothstep", "project_on_bones",
-           "MAX_INFLUENCES"]
+           "bone_partners", "surface_labels", "bone_weights", "MAX_INFLUENCES"]
 
 MAX_INFLUENCES = 4
 
@@ -227,3 +235,258 @@ def project_on_bones(points, joints, bones, *, k: int = 8):
     keep[:, 1:] = cand[:, 1:] != cand[:, :-1]                # drop repeated bones
     indptr = np.r_[0, np.cumsum(keep.sum(axis=1))]
     return closest_on_bones(Pt, X, E, candidates=(indptr, cand[keep]))
+
+
+# == weights from the armature's current bones, respecting the surface ================================
+def bone_partners(heads, tails, parent, deform=None, *, tol=None):
+    """Blend partners of bones as they are now (any armature, edited or not).
+
+    A child whose head sits on its parent's tail continues the parent: when it is the parent's
+    only such child the two blend symmetrically at the joint; when several children start there
+    (a junction) each hands over to the parent (the hub: weight 1 at the joint). Children whose
+    head sits on the parent's head (under a root bone) hand over to the parent the same way.
+    Non-deforming bones take no part.
+
+    Parameters
+    ----------
+    heads, tails : (R, 3) float
+    parent : (R,) int, -1 for none
+    deform : (R,) bool, optional
+    tol : float, optional
+        Distance under which two bone ends coincide (default 1e-4 of the bones' extent).
+
+    Returns
+    -------
+    head_mode, tail_mode : (R,) int
+        BLEND_NONE, BLEND_SYMMETRIC or BLEND_HUB.
+    head_partner, tail_partner : (R,) int
+    attached : (R,) bool
+        The bone's head sits on its (deforming) parent.
+    """
+    H = np.asarray(heads, dtype=np.float64).reshape(-1, 3)
+    T = np.asarray(tails, dtype=np.float64).reshape(-1, 3)
+    par = np.asarray(parent, dtype=np.int64).ravel()
+    R = len(H)
+    deform = np.ones(R, bool) if deform is None else np.asarray(deform, bool).ravel()
+    if tol is None:
+        ext = np.ptp(np.concatenate([H, T]), axis=0) if R else np.zeros(3)
+        tol = max(1e-4 * float(np.linalg.norm(ext)), 1e-9)
+    head_mode = np.zeros(R, np.int64)
+    tail_mode = np.zeros(R, np.int64)
+    head_partner = np.full(R, -1, np.int64)
+    tail_partner = np.full(R, -1, np.int64)
+    attached = np.zeros(R, bool)
+    at_tail: dict[int, list[int]] = {}
+    for r in range(R):
+        p = int(par[r])
+        if p < 0 or not deform[r] or not deform[p]:
+            continue
+        if np.linalg.norm(H[r] - T[p]) <= tol:
+            at_tail.setdefault(p, []).append(r)
+            attached[r] = True
+        elif np.linalg.norm(H[r] - H[p]) <= tol:
+            head_mode[r], head_partner[r] = BLEND_HUB, p
+            attached[r] = True
+    for p, kids in at_tail.items():
+        if len(kids) == 1:
+            c = kids[0]
+            tail_mode[p], tail_partner[p] = BLEND_SYMMETRIC, c
+            head_mode[c], head_partner[c] = BLEND_SYMMETRIC, p
+        else:
+            for c in kids:
+                head_mode[c], head_partner[c] = BLEND_HUB, p
+    return head_mode, tail_mode, head_partner, tail_partner, attached
+
+
+def _closest_on_segments(P, A, B):
+    """Parameter s in [0, 1] (0 at A) and squared distance of points P to segments A-B (row-wise)."""
+    D = B - A
+    L2 = np.einsum("ij,ij->i", D, D)
+    s = np.einsum("ij,ij->i", P - A, D) / np.where(L2 > 0, L2, 1.0)
+    s = np.clip(np.where(L2 > 0, s, 0.0), 0.0, 1.0)
+    Q = A + s[:, None] * D
+    return s, np.einsum("ij,ij->i", P - Q, P - Q)
+
+
+def _edge_graph(V, E, n):
+    E = E[E[:, 0] != E[:, 1]]
+    w = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)
+    w = np.maximum(w, 1e-12)
+    G = sp.coo_matrix((np.r_[w, w], (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])),
+                      shape=(n, n)).tocsr()
+    return G, E
+
+
+def surface_labels(V, edges, heads, tails, deform=None, *, k: int = 8):
+    """The bone each vertex belongs to: the closest bone, then restricted to the surface region
+    of that bone that is connected on the mesh.
+
+    The closest deforming bone (straight-line distance to the segment) labels each vertex; for
+    each bone only the largest edge-connected patch of its vertices keeps the label, and every
+    other patch (an island of a neighbouring limb that is near the bone in space but not on the
+    same part of the surface: the inner side of the next finger, a flank next to a thigh) takes
+    the label of the nearest kept vertex along the surface (multi-source Dijkstra over the
+    edges). Vertices that no kept patch reaches keep their closest bone.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+        Vertex positions, in the bones' space.
+    edges : (e, 2) int
+        Mesh edges.
+    heads, tails : (R, 3) float
+    deform : (R,) bool, optional
+        Bones that may carry vertices (default all).
+    k : int
+        Candidate bones per vertex for the closest-bone search.
+
+    Returns
+    -------
+    label : (n,) int
+        Bone of each vertex.
+    s : (n,) float
+        Position of its closest point on that bone, 0 at the head, 1 at the tail.
+    dist : (n,) float
+        Distance to that point.
+    closest : (n,) int
+        The closest bone of each vertex (before the surface restriction).
+    """
+    P = np.asarray(V, dtype=np.float64).reshape(-1, 3)
+    n = len(P)
+    H = np.asarray(heads, dtype=np.float64).reshape(-1, 3)
+    T = np.asarray(tails, dtype=np.float64).reshape(-1, 3)
+    R = len(H)
+    deform = np.ones(R, bool) if deform is None else np.asarray(deform, bool).ravel()
+    ids = np.flatnonzero(deform)
+    if len(ids) == 0:
+        raise CurveSkelError("the armature has no deforming bones")
+    X = np.concatenate([H[ids], T[ids]])
+    segs = np.stack([np.arange(len(ids)), len(ids) + np.arange(len(ids))], 1)
+    # project_on_bones: sigma = t * head + (1 - t) * tail
+    b, t, _ = project_on_bones(P, X, segs, k=k)
+    label = closest = ids[b]
+    E = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    if n and len(E):
+        G, E = _edge_graph(P, E, n)
+        same = label[E[:, 0]] == label[E[:, 1]]
+        Es = E[same]
+        Gs = sp.coo_matrix((np.ones(len(Es)), (Es[:, 0], Es[:, 1])), shape=(n, n))
+        _, comp = connected_components(Gs, directed=False)
+        size = np.bincount(comp)
+        # largest patch of each label
+        order = np.lexsort((-size[comp], label))
+        first = np.r_[True, label[order][1:] != label[order][:-1]]
+        keep_comp = np.zeros(len(size), bool)
+        keep_comp[comp[order[first]]] = True
+        kept = keep_comp[comp]
+        if not kept.all():
+            src = np.flatnonzero(kept)
+            dist, _, sources = dijkstra(G, directed=False, indices=src, min_only=True,
+                                        return_predecessors=True)
+            move = (~kept) & np.isfinite(dist) & (sources >= 0)
+            label = label.copy()
+            label[move] = label[sources[move]]
+    s, d2 = _closest_on_segments(P, H[label], T[label])
+    return label, s, np.sqrt(d2), closest
+
+
+def bone_weights(V, F, heads, tails, parent, deform=None, *, blend: float = 0.25,
+                 smooth: float = 0.5, max_influences: int = MAX_INFLUENCES, edges=None):
+    """Skin weights for the bones as they are now, respecting the surface.
+
+    1. :func:`surface_labels`: each vertex belongs to one bone (closest bone, restricted to the
+       bone's connected patch of the surface).
+    2. Near the ends of its bone a vertex blends with the bone's partner there
+       (:func:`bone_partners`): 50/50 at a chain joint, a one-sided hand-over into the hub at a
+       junction, with a smoothstep over ``blend`` of the bone's length (as :func:`skin_weights`).
+    3. The weights are diffused along the surface over ``smooth`` times the median
+       vertex-to-bone distance (:func:`smooth_weights`, at most 30 steps), then each vertex keeps
+       only its main bone, that bone's parent and its children: weights never spread to a
+       sibling limb or across a gap.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+        Vertices in the bones' space.
+    F : (m, 3) int or None
+        Triangles (only their edges are used).
+    heads, tails : (R, 3) float
+    parent : (R,) int
+    deform : (R,) bool, optional
+    blend : float in [0, 0.5]
+    smooth : float >= 0
+    max_influences : int
+    edges : (e, 2) int, optional
+        The mesh's edges, used instead of the triangles' (any polygons).
+
+    Returns
+    -------
+    index : (n, max_influences) int
+        Bone of each influence, -1 where unused.
+    weight : (n, max_influences) float
+        Sorted decreasing per row, summing to 1.
+    info : dict
+        ``relabelled`` (vertices moved to another bone by the surface restriction),
+        ``smooth_iterations``.
+    """
+    if not 0.0 <= blend <= 0.5:
+        raise CurveSkelError(f"blend must be in [0, 0.5] of a bone's length, got {blend}")
+    if not smooth >= 0:
+        raise CurveSkelError(f"smooth must be >= 0, got {smooth}")
+    P = np.asarray(V, dtype=np.float64).reshape(-1, 3)
+    Fa = np.zeros((0, 3), np.int64) if F is None else np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    n = len(P)
+    H = np.asarray(heads, dtype=np.float64).reshape(-1, 3)
+    T = np.asarray(tails, dtype=np.float64).reshape(-1, 3)
+    par = np.asarray(parent, dtype=np.int64).ravel()
+    R = len(H)
+    if T.shape != H.shape or len(par) != R:
+        raise CurveSkelError(f"heads {H.shape}, tails {T.shape} and parent {par.shape} must match")
+    if len(Fa) and (Fa.min() < 0 or Fa.max() >= n):
+        raise CurveSkelError("face vertex index out of range")
+    deform = np.ones(R, bool) if deform is None else np.asarray(deform, bool).ravel()
+    if edges is not None:
+        E = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+        if len(E) and (E.min() < 0 or E.max() >= n):
+            raise CurveSkelError("edge vertex index out of range")
+    else:
+        E = np.concatenate([Fa[:, [0, 1]], Fa[:, [1, 2]], Fa[:, [2, 0]]]) if len(Fa) else np.zeros((0, 2), np.int64)
+        E = np.unique(np.sort(E, axis=1), axis=0)
+    label, s, dist, closest = surface_labels(P, E, H, T, deform)
+    hm, tm, hp, tp, attached = bone_partners(H, T, par, deform)
+    near_head = s < 0.5
+    u = np.where(near_head, s, 1.0 - s)
+    mode = np.where(near_head, hm[label], tm[label])
+    partner = np.where(near_head, hp[label], tp[label])
+    if blend > 0:
+        f = smoothstep(u / blend)
+        share = np.where(mode == BLEND_SYMMETRIC, 0.5 * (1.0 - f), np.where(mode == BLEND_HUB, 1.0 - f, 0.0))
+    else:
+        share = np.zeros(n)
+    share = np.where(partner >= 0, share, 0.0)
+    index = np.full((n, 2), -1, np.int64)
+    weight = np.zeros((n, 2))
+    index[:, 0], weight[:, 0] = label, 1.0 - share
+    has = share > 0
+    index[has, 1], weight[has, 1] = partner[has], share[has]
+    k = 0
+    if smooth > 0 and len(E) and n:
+        h = float(np.mean(np.linalg.norm(P[E[:, 0]] - P[E[:, 1]], axis=1)))
+        k = smoothing_iterations(smooth * float(np.median(dist)), h)
+    index, weight = smooth_weights(index, weight, E, iterations=k, max_influences=max_influences)
+    # keep the main bone's family only (itself, its parent, its children)
+    main = index[:, :1]
+    ok = index >= 0
+    idx = np.maximum(index, 0)
+    pm = np.where(attached[main], par[main], -2)
+    pi = np.where(attached[idx], par[idx], -2)
+    family = ok & ((idx == main) | (idx == pm) | (pi == main))
+    weight = np.where(family, weight, 0.0)
+    index = np.where(family, index, -1)
+    total = weight.sum(axis=1, keepdims=True)
+    weight = np.divide(weight, total, out=np.zeros_like(weight), where=total > 0)
+    order = np.argsort(-weight, axis=1, kind="stable")
+    index = np.take_along_axis(index, order, axis=1)
+    weight = np.take_along_axis(weight, order, axis=1)
+    index[weight <= 0] = -1
+    return index, weight, {"relabelled": int(np.sum(label != closest)), "smooth_iterations": int(k)}
