@@ -2,6 +2,18 @@
 
 Nothing here changes the caller's arrays: a cleaned copy (the "working mesh") is returned with
 the map from each input vertex to its working vertex, so results come back in input order.
+
+Every tolerance is relative to the size ``D`` of the mesh (the diagonal of the bounding box of
+the vertices the faces use), never absolute, so scaling or moving a mesh cleans it the same way:
+
+* vertices at one position are merged; where the surface has open edges (a triangle soup, a
+  crack) vertices on them closer than ``MERGE_TOLERANCE * D`` are merged too;
+* faces with a repeated vertex, repeated faces, and faces thinner than the merge tolerance
+  (zero-area slivers) are dropped;
+* face winding is made consistent across every manifold edge and each connected part is turned
+  to face outwards (positive signed volume), so inverted normals do not matter;
+* parts with less than ``min_component_area`` of the total area (scan debris) are dropped;
+* a mesh flat to within the tolerance (no volume at all) is refused.
 """
 
 from __future__ import annotations
@@ -12,7 +24,16 @@ import numpy as np
 
 from .errors import CurveSkelError
 
-__all__ = ["CleanMesh", "clean_mesh", "triangulate"]
+__all__ = ["CleanMesh", "clean_mesh", "triangulate", "MERGE_TOLERANCE", "FLAT_TOLERANCE"]
+
+#: Vertices on open edges closer than this fraction of the mesh size are one vertex; faces
+#: thinner than it (height over their longest side) have no area.
+MERGE_TOLERANCE = 1e-5
+#: A mesh whose vertices all lie within this fraction of its size of one plane is flat.
+FLAT_TOLERANCE = 1e-5
+#: A part is turned over only when its signed volume is clearly negative: |vol| above this share
+#: of the sum of the absolute per-face volumes (a flat or self-cancelling part is left alone).
+ORIENT_MARGIN = 1e-3
 
 
 @dataclass
@@ -28,13 +49,18 @@ class CleanMesh:
     work_index : (n,) int
         For each input vertex its working vertex, or -1 if no face uses it (isolated).
     info : dict
-        What was repaired: merged duplicates, dropped degenerate faces, isolated vertices.
+        What was repaired: merged duplicates, dropped degenerate faces, isolated vertices,
+        faces turned over, small parts dropped (see :func:`clean_mesh`).
+    components : (k, labels) or None
+        The connected components of the working mesh, as
+        :func:`.mesh_graph.components` returns them (computed here anyway).
     """
 
     V: np.ndarray
     F: np.ndarray
     work_index: np.ndarray
     info: dict = field(default_factory=dict)
+    components: tuple | None = None
 
 
 def triangulate(faces) -> np.ndarray:
@@ -107,24 +133,200 @@ def _merge_identical(V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return V[first_min[by_first]], inverse
 
 
-def _any_positive_area(V: np.ndarray, F: np.ndarray, chunk: int = 4096) -> bool:
-    """True if some triangle has non-zero area; usually decided by the first chunk."""
-    for k in range(0, len(F), max(chunk, len(F) // 8)):
-        T = V[F[k:k + max(chunk, len(F) // 8)]]
-        if np.any(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]) != 0):
-            return True
-    return False
+
+def _edge_census(F: np.ndarray, n: int):
+    """Per undirected edge of the triangles: how many sides run a->b (a < b) and b->a.
+
+    Returns (boundary, nonmanifold, inconsistent) edge counts and the (n, n) sparse edge matrix
+    (its connected components are the mesh's). A sparse matrix sums the two directions in one
+    pass (as :func:`.mesh_graph.edge_table`, no sort of the 3m sides)."""
+    import scipy.sparse as sp
+
+    a = F.ravel()
+    b = F[:, [1, 2, 0]].ravel()
+    fwd = a < b
+    lo, hi = np.where(fwd, a, b), np.where(fwd, b, a)
+    idx = np.int32 if n < 2**31 - 1 else np.int64
+    data = np.where(fwd, np.int64(1), np.int64(1) << 32)
+    A = sp.coo_matrix((data, (lo.astype(idx), hi.astype(idx))), shape=(n, n)).tocsr()
+    A.sum_duplicates()
+    f, r = A.data & 0xFFFFFFFF, A.data >> 32
+    c = f + r
+    return (int(np.count_nonzero(c == 1)), int(np.count_nonzero(c > 2)),
+            int(np.count_nonzero((c == 2) & (f != 1))), A)
 
 
-def clean_mesh(V, F) -> CleanMesh:
+def _open_edge_vertices(F: np.ndarray, n: int) -> np.ndarray:
+    """Indices of the vertices on edges used by one face only."""
+    a = F.ravel()
+    b = F[:, [1, 2, 0]].ravel()
+    key = np.minimum(a, b) * np.int64(n) + np.maximum(a, b)
+    k, cnt = np.unique(key, return_counts=True)
+    k = k[cnt == 1]
+    return np.unique(np.concatenate([k // n, k % n]))
+
+
+def _merge_close(V: np.ndarray, inverse: np.ndarray, candidates: np.ndarray, tol: float):
+    """Merge the ``candidates`` (indices into V) lying within ``tol`` of each other (chains
+    included); each cluster takes its mean position and the place of its first member.
+    Returns (V, inverse, merged count)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    if len(candidates) < 2:
+        return V, inverse, 0
+    pairs = cKDTree(V[candidates]).query_pairs(tol, output_type="ndarray")
+    if len(pairs) == 0:
+        return V, inverse, 0
+    pairs = candidates[pairs]
+    n = len(V)
+    G = coo_matrix((np.ones(len(pairs), np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    k, lab = connected_components(G, directed=False)
+    # Number clusters by their first vertex so the working mesh keeps the input's order.
+    first = np.full(k, n, np.int64)
+    np.minimum.at(first, lab, np.arange(n))
+    order = np.argsort(first, kind="stable")
+    rank = np.empty(k, np.int64)
+    rank[order] = np.arange(k)
+    new = rank[lab]
+    cnt = np.bincount(new, minlength=k).astype(np.float64)
+    Vn = np.stack([np.bincount(new, weights=V[:, j], minlength=k) for j in range(3)], axis=1)
+    Vn /= cnt[:, None]
+    return Vn, new[inverse], n - k
+
+
+def _drop_repeated_index(F: np.ndarray) -> tuple[np.ndarray, int]:
+    ok = (F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])
+    dropped = int(len(F) - np.count_nonzero(ok))
+    return (F[ok] if dropped else F), dropped
+
+
+def _drop_repeated_faces(F: np.ndarray, n: int) -> tuple[np.ndarray, int]:
+    """Faces on the same three vertices (either winding) after the first are dropped."""
+    S = np.sort(F, axis=1)
+    order = np.lexsort((S[:, 2], S[:, 1], S[:, 0]))
+    Ss = S[order]
+    dup = np.zeros(len(F), bool)
+    dup[order[1:]] = np.all(Ss[1:] == Ss[:-1], axis=1)
+    # keep the first occurrence in input order: among equal rows lexsort is stable, so the
+    # first of each run is the lowest input index
+    k = int(np.count_nonzero(dup))
+    return (F[~dup] if k else F), k
+
+
+def _consistent_winding(F: np.ndarray, n: int, weight: np.ndarray):
+    """Flip faces so neighbours across every manifold edge agree (an edge run in opposite
+    directions by its two faces). Within each connected patch the winding of the larger share
+    of ``weight`` (face area) is kept. Returns (flip mask (m,), patch label per face,
+    number of non-orientable patches, left as they are)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    m = len(F)
+    a = F.ravel()
+    b = F[:, [1, 2, 0]].ravel()
+    face = np.repeat(np.arange(m), 3)
+    key = np.minimum(a, b) * np.int64(n) + np.maximum(a, b)
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    starts = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
+    counts = np.diff(np.r_[starts, len(ks)])
+    s2 = starts[counts == 2]
+    h1, h2 = order[s2], order[s2 + 1]
+    f, g = face[h1], face[h2]
+    same = (a[h1] < b[h1]) == (a[h2] < b[h2])          # same direction: one of them must flip
+    keep = f != g
+    f, g, same = f[keep], g[keep], same[keep]
+    k, patch = connected_components(coo_matrix((np.ones(len(f), np.int8), (f, g)), shape=(m, m)),
+                                    directed=False)
+    # Two copies of every face (as is / flipped); an edge joins the copies that agree there.
+    p = same.astype(np.int64)
+    rows = np.concatenate([f, f + m])
+    cols = np.concatenate([g + p * m, g + (1 - p) * m])
+    _, side = connected_components(coo_matrix((np.ones(len(rows), np.int8), (rows, cols)),
+                                              shape=(2 * m, 2 * m)), directed=False)
+    root = np.full(k, m, np.int64)
+    np.minimum.at(root, patch, np.arange(m))
+    flip = side[:m] != side[root[patch]]
+    bad = np.zeros(k, bool)
+    bad[patch[side[:m] == side[m:]]] = True              # a face agrees with its own flip
+    flip &= ~bad[patch]
+    # Keep the winding most of each patch's area already had.
+    flipped_w = np.bincount(patch, weights=weight * flip, minlength=k)
+    total_w = np.bincount(patch, weights=weight, minlength=k)
+    invert = (flipped_w > 0.5 * total_w) & ~bad
+    flip ^= invert[patch]
+    return flip, patch, int(bad.sum())
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product (several times faster than np.cross on (m, 3) arrays)."""
+    c = np.empty_like(a)
+    c[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    c[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    c[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return c
+
+
+def _boundary_vertices(A) -> np.ndarray:
+    """Vertices on edges used by one face, from the edge matrix of :func:`_edge_census`."""
+    c = (A.data & 0xFFFFFFFF) + (A.data >> 32)
+    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+    one = c == 1
+    return np.concatenate([rows[one], A.indices[one]])
+
+
+def _flat_components(V: np.ndarray, labels: np.ndarray, k: int) -> np.ndarray:
+    """(k,) bool: the components whose vertices lie in one plane (RMS distance from their plane
+    of best fit at most ``FLAT_TOLERANCE`` of their RMS radius)."""
+    if k == 1:
+        centre = V.mean(axis=0)
+        size = float(np.sqrt(((V - centre) ** 2).sum(axis=1).mean()))
+        return np.array([_thickness(V) <= FLAT_TOLERANCE * size])
+    cnt = np.maximum(np.bincount(labels, minlength=k), 1).astype(np.float64)
+    mean = np.stack([np.bincount(labels, weights=V[:, j], minlength=k) for j in range(3)], 1) / cnt[:, None]
+    X = V - mean[labels]
+    C = np.empty((k, 3, 3))
+    for i in range(3):
+        for j in range(i, 3):
+            C[:, i, j] = C[:, j, i] = np.bincount(labels, weights=X[:, i] * X[:, j], minlength=k) / cnt
+    lam = np.linalg.eigvalsh(C)                       # ascending
+    return np.sqrt(np.maximum(lam[:, 0], 0.0)) <= FLAT_TOLERANCE * np.sqrt(np.maximum(lam.sum(axis=1), 0.0))
+
+
+def _thickness(V: np.ndarray) -> float:
+    """Extent of V across its plane of best fit (0 for a flat point set).
+
+    The plane comes from the covariance of at most ~20k evenly spaced vertices (exact when the
+    set is flat, as long as they span the plane), the extent is measured on every vertex."""
+    centre = V.mean(axis=0)
+    step = max(1, len(V) // 20000)
+    for sample in (V[::step], V) if step > 1 else (V,):
+        X = sample - centre
+        _, sv, vt = np.linalg.svd(X.T @ X)
+        if sv[1] > 1e-12 * sv[0]:        # the sample spans a plane: its normal is reliable
+            break
+    return float(np.ptp((V - centre) @ vt[-1]))
+
+
+def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
     """Validate a mesh and return its working copy.
 
     Raises :class:`CurveSkelError` for: no vertices, vertices not of shape (n, 3), NaN or inf
-    coordinates, no faces, non-integer or out-of-range face indices, and a mesh with no face of
-    non-zero area. Repairs silently (and counts in ``info``): polygons (triangulated),
-    duplicate vertex positions (merged), faces with a repeated vertex (dropped), isolated
-    vertices (left out of the working mesh; mapped to the skeleton afterwards).
+    coordinates, no faces, non-integer or out-of-range face indices, a mesh with no face of
+    non-zero area, and a flat mesh (every vertex in one plane: no volume to skeletonize).
+
+    Repairs (and counts in ``info``): polygons (triangulated), duplicate vertex positions
+    (merged; on open edges within ``MERGE_TOLERANCE`` of the size), faces with a repeated vertex
+    or repeated faces (dropped), zero-area faces (dropped), inconsistent or inward winding
+    (turned over: ``flipped_faces``), connected parts with less than ``min_component_area`` of
+    the total area (dropped; 0 keeps all; the largest part is always kept), isolated vertices.
+    Vertices left out of the working mesh have ``work_index`` -1 (mapped to the skeleton
+    afterwards by the nearest working vertex).
     """
+    from .mesh_graph import components
+
     V = np.asarray(V)
     if V.size == 0:
         raise CurveSkelError("the mesh has no vertices")
@@ -144,19 +346,72 @@ def clean_mesh(V, F) -> CleanMesh:
     if F.size and (F.min() < 0 or F.max() >= n):
         raise CurveSkelError(
             f"face indices out of range: they must lie in [0, {n - 1}], found {int(F.min())}..{int(F.max())}")
+    try:
+        min_component_area = float(min_component_area)
+    except (TypeError, ValueError):
+        min_component_area = float("nan")
+    if not 0.0 <= min_component_area < 1.0:
+        raise CurveSkelError(f"min_component_area must be >= 0 and < 1, got {min_component_area!r}")
 
     # Merge vertices at identical positions (STL soup, seams) so connectivity is real.
     uniq, inverse = _merge_identical(V)
     merged = n - len(uniq)
     Fm = inverse[F] if merged else F
-    ok = (Fm[:, 0] != Fm[:, 1]) & (Fm[:, 1] != Fm[:, 2]) & (Fm[:, 0] != Fm[:, 2])
-    dropped = int(len(Fm) - np.count_nonzero(ok))
-    if dropped:
-        Fm = Fm[ok]
+    Fm, dropped = _drop_repeated_index(Fm)
     if len(Fm) == 0:
         raise CurveSkelError("every face is degenerate (repeated vertices): nothing to skeletonize")
-    if not _any_positive_area(uniq, Fm):
+    used = np.bincount(Fm.ravel(), minlength=len(uniq)) > 0
+    Vu = uniq[used]
+    size = float(np.linalg.norm(Vu.max(axis=0) - Vu.min(axis=0)))
+    if size == 0.0:
+        raise CurveSkelError("every face has zero area (all vertices at one point): nothing to skeletonize")
+    tol = MERGE_TOLERANCE * size
+
+    boundary, nonmanifold, inconsistent, edges = _edge_census(Fm, len(uniq))
+    merged_close = 0
+    if boundary:
+        # Open edges: a soup or a crack. Vertices on them within the tolerance are one vertex.
+        cand = _open_edge_vertices(Fm, len(uniq))
+        uniq, inverse, merged_close = _merge_close(uniq, inverse, cand, tol)
+        if merged_close:
+            Fm = inverse[F]
+            Fm, dropped = _drop_repeated_index(Fm)
+            if len(Fm) == 0:
+                raise CurveSkelError("every face is degenerate (repeated vertices): nothing to skeletonize")
+            boundary, nonmanifold, inconsistent, edges = _edge_census(Fm, len(uniq))
+    repeated_faces = 0
+    if nonmanifold or inconsistent:
+        Fm, repeated_faces = _drop_repeated_faces(Fm, len(uniq))
+        if repeated_faces:
+            boundary, nonmanifold, inconsistent, edges = _edge_census(Fm, len(uniq))
+
+    P = uniq[Fm]
+    T0 = P[:, 0]
+    e1, e2 = P[:, 1] - T0, P[:, 2] - T0
+    del P
+    cross = _cross(e1, e2)
+    dbl_area = np.sqrt(np.einsum("ij,ij->i", cross, cross))
+    e3 = e2 - e1
+    longest2 = np.maximum(np.maximum(np.einsum("ij,ij->i", e1, e1), np.einsum("ij,ij->i", e2, e2)),
+                          np.einsum("ij,ij->i", e3, e3))
+    # Height over the longest side no more than the tolerance: a sliver with no area.
+    thin = dbl_area * dbl_area <= (tol * tol) * longest2
+    if np.all(thin):
         raise CurveSkelError("every face has zero area: nothing to skeletonize")
+
+    flip = np.zeros(len(Fm), bool)
+    patch = None
+    non_orientable = 0
+    if inconsistent:
+        # Made consistent with the zero-area faces still in place: they may close a crack.
+        flip, patch, non_orientable = _consistent_winding(Fm, len(uniq), dbl_area)
+
+    ok = ~thin
+    degenerate_area = int(np.count_nonzero(thin))
+    if degenerate_area:
+        Fm, cross, dbl_area, flip, T0 = Fm[ok], cross[ok], dbl_area[ok], flip[ok], T0[ok]
+        if patch is not None:
+            patch = patch[ok]
 
     # Keep referenced vertices only; renumber. Clean meshes (the common case) skip the copies.
     used = np.bincount(Fm.ravel(), minlength=len(uniq)) > 0
@@ -170,11 +425,117 @@ def clean_mesh(V, F) -> CleanMesh:
         Vw = uniq[used]
         Fw = new_id[Fm]
         work_index = new_id[inverse]
+    isolated = int(len(uniq) - n_used)
+
+    reuse_edges = degenerate_area == 0 and isolated == 0
+    if reuse_edges:
+        # The working mesh is the one of the last census: its edge matrix gives the components
+        # (the same labels as mesh_graph.components: both number them by their first vertex).
+        from scipy.sparse.csgraph import connected_components
+
+        k, labels = connected_components(edges, directed=False)
+    else:
+        k, labels = components(len(Vw), Fw)
+    face_comp = labels[Fw[:, 0]]
+    # Outward: each part (a patch of consistent winding, or a connected component) turned so
+    # its signed volume is positive; about the part's centroid, for precision far from 0.
+    group = patch if patch is not None else face_comp
+    ng = int(group.max()) + 1
+    if ng == 1:
+        gc = Vw.mean(axis=0)[None, :]
+    elif patch is None:          # per component: the mean of its vertices
+        cnt = np.bincount(labels, minlength=ng).astype(np.float64)
+        gc = np.stack([np.bincount(labels, weights=Vw[:, j], minlength=ng) for j in range(3)],
+                      axis=1) / np.maximum(cnt, 1.0)[:, None]
+    else:                        # per patch: the area-weighted mean of its faces' first corners
+        gw = np.maximum(np.bincount(group, weights=dbl_area, minlength=ng), 1e-300)
+        gc = np.stack([np.bincount(group, weights=dbl_area * T0[:, j], minlength=ng)
+                       for j in range(3)], axis=1) / gw[:, None]
+    term = np.einsum("ij,ij->i", T0 - gc[group] if ng > 1 else T0 - gc[0], cross)
+    if flip.any():
+        term[flip] = -term[flip]
+    vol = np.bincount(group, weights=term, minlength=ng)
+    absvol = np.bincount(group, weights=np.abs(term), minlength=ng)
+    inward = vol < -ORIENT_MARGIN * absvol
+    if inward.any():
+        flip ^= inward[group]
+    reoriented = int(np.count_nonzero(inward))
+    flipped_faces = int(np.count_nonzero(flip))
+    if flipped_faces:
+        Fw = Fw.copy()
+        Fw[flip] = Fw[flip][:, ::-1]
+
+    # Parts with no inside have no curve-skeleton: flat parts (every vertex in one plane) and
+    # open fragments (loose triangles, strips: no vertex surrounded by faces) are left out; if
+    # nothing else is left the mesh is refused. Then scan debris: parts with a tiny share of
+    # the total area (the largest part is always kept).
+    flat = _flat_components(Vw, labels, k)
+    fragment = np.zeros(k, bool)
+    if boundary or degenerate_area or merged_close or repeated_faces:
+        A = edges if reuse_edges else _edge_census(Fw, len(Vw))[3]
+        interior = np.ones(len(Vw), bool)
+        interior[_boundary_vertices(A)] = False
+        fragment = np.bincount(labels, weights=interior, minlength=k) == 0
+    unusable = flat | fragment
+    if unusable.all():
+        if flat.all():
+            where = "every vertex lies in one plane" if k == 1 else f"each of its {k} parts lies in a plane"
+            raise CurveSkelError(
+                f"the mesh is flat ({where}): a curve-skeleton needs a shape with volume; give "
+                "the surface a thickness (e.g. a Solidify modifier) first")
+        raise CurveSkelError(
+            f"no part of the mesh encloses a volume: its {k} part(s) are flat or loose triangles "
+            "and open strips (no vertex surrounded by faces); is it a triangle soup whose corners "
+            "are not shared, or an unfinished surface?")
+    carea = np.bincount(face_comp, weights=dbl_area, minlength=k)
+    small = np.zeros(k, bool)
+    if min_component_area > 0 and k > 1:
+        usable_area = carea[~unusable]
+        small = ~unusable & (carea < min_component_area * float(usable_area.sum()))
+        small[np.flatnonzero(~unusable)[int(np.argmax(usable_area))]] = False
+    drop = unusable | small
+    small_vertices = 0
+    if drop.any():
+        keep_v = ~drop[labels]
+        small_vertices = int(np.count_nonzero(~keep_v & small[labels]))
+        new_id = np.full(len(Vw), -1, np.int64)
+        new_id[keep_v] = np.arange(int(keep_v.sum()))
+        Fw = new_id[Fw[~drop[face_comp]]]
+        Vw = Vw[keep_v]
+        wi = work_index.copy()
+        ok_wi = wi >= 0
+        wi[ok_wi] = new_id[wi[ok_wi]]
+        work_index = wi
+        kept = np.flatnonzero(~drop)
+        relabel = np.full(k, -1, np.int64)
+        relabel[kept] = np.arange(len(kept))
+        labels = relabel[labels[keep_v]]
+        k = len(kept)
+    small_dropped = int(small.sum())
+    small_share = float(carea[small].sum() / carea.sum()) if small_dropped else 0.0
+
     info = {
         "input_vertices": n,
         "input_faces": int(len(F)),
-        "merged_duplicates": int(merged),
-        "degenerate_faces_dropped": dropped,
-        "isolated_vertices": int(len(uniq) - n_used),
+        "merged_duplicates": int(merged + merged_close),
+        "merge_tolerance": tol,
+        "degenerate_faces_dropped": int(dropped + repeated_faces + degenerate_area),
+        "isolated_vertices": isolated,
+        "flipped_faces": flipped_faces,
+        "reoriented_components": reoriented,
     }
-    return CleanMesh(Vw, Fw, work_index, info)
+    if merged_close:
+        info["merged_within_tolerance"] = int(merged_close)
+    if non_orientable:
+        info["non_orientable_parts"] = non_orientable
+    if min_component_area > 0:
+        info["min_component_area"] = min_component_area
+    if flat.any():
+        info["flat_components_dropped"] = int(flat.sum())
+    if (fragment & ~flat).any():
+        info["open_fragments_dropped"] = int((fragment & ~flat).sum())
+    if small_dropped:
+        info["small_components_dropped"] = small_dropped
+        info["small_components_vertices"] = small_vertices
+        info["small_components_area_share"] = small_share
+    return CleanMesh(Vw, Fw, work_index, info, components=(int(k), labels))

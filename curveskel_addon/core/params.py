@@ -1,10 +1,18 @@
-"""Parameters of the method, with defaults shared by the core, the CLI and the Blender UI."""
+"""Parameters of the method, with defaults shared by the core, the CLI and the Blender UI.
+
+Every parameter is checked here, once, whoever builds it (API, command line, Blender): see
+:data:`RULES` and :func:`check_params`. A bad value raises :class:`CurveSkelError` naming it.
+"""
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import asdict, dataclass, fields
 
-__all__ = ["SkeletonParams", "SOLVERS"]
+from .errors import CurveSkelError
+
+__all__ = ["SkeletonParams", "SOLVERS", "RULES", "check_params"]
 
 #: "paper": gradient descent with exact line search, stopped as in eqs. 30-31 (reproduces the
 #: paper). "lm": Levenberg-Marquardt on the 4-per-joint normal equations (converges).
@@ -64,6 +72,11 @@ class SkeletonParams:
         Above this many vertices the solver fits an area-weighted random subset of this size
         (a quadrature of the same surface integral) and maps every vertex at the end.
         0 = always fit every vertex. Needs area_weighted.
+    min_component_area : float
+        Connected parts of the mesh with less than this share of the total surface area are
+        dropped before the fit (scan debris, specks); their vertices are mapped to the nearest
+        kept part. The largest part is always kept. 0 keeps every part. Reported in
+        ``meta["input"]`` (``small_components_dropped`` ...).
     """
 
     spacing: float = 0.04
@@ -81,6 +94,10 @@ class SkeletonParams:
     max_fit_points: int = 60000
     refine: int = 1
     max_joints: int = 300
+    min_component_area: float = 0.01
+
+    def __post_init__(self):
+        check_params(self)
 
     @classmethod
     def paper(cls, **overrides) -> "SkeletonParams":
@@ -89,12 +106,115 @@ class SkeletonParams:
                     simplify=0.0, candidates=1, max_iterations=1000, smoothness=0.0,
                     containment=0.0, max_fit_points=0, refine=0)
         base.update(overrides)
-        return cls(**base)
+        return cls.from_dict(base)
 
     def to_dict(self) -> dict:
         return asdict(self)
 
     @classmethod
     def from_dict(cls, d: dict) -> "SkeletonParams":
-        names = {f.name for f in fields(cls)}
-        return cls(**{k: v for k, v in d.items() if k in names})
+        """Parameters from a mapping of field names; an unknown name raises CurveSkelError."""
+        names = [f.name for f in fields(cls)]
+        unknown = [k for k in d if k not in names]
+        if unknown:
+            raise CurveSkelError(_unknown_message(unknown, names))
+        return cls(**dict(d))
+
+
+# -- validation ---------------------------------------------------------------------------------
+#: One rule per field: (kind, low, high) with kind "float" (finite real), "int" (integral),
+#: "bool" or "choice"; low/high are inclusive bounds, a bound in a 1-tuple is exclusive
+#: ((0,) means "> 0"), None means unbounded; for "choice" low is the tuple of allowed values.
+#: A field without a rule is still type-checked from its default's type (finite for floats).
+RULES: dict[str, tuple] = {
+    "spacing": ("float", (0.0,), 0.5),
+    "solver": ("choice", SOLVERS, None),
+    "max_iterations": ("int", 0, None),
+    "tolerance": ("float", (0.0,), 1.0),
+    "seed": ("int", 0, None),
+    "area_weighted": ("bool", None, None),
+    "refit_mapping": ("bool", None, None),
+    "prune": ("float", 0.0, 1.0),
+    "simplify": ("float", 0.0, None),
+    "candidates": ("int", 1, None),
+    "smoothness": ("float", 0.0, None),
+    "containment": ("float", 0.0, None),
+    "max_fit_points": ("int", 0, None),
+    "refine": ("int", 0, None),
+    "max_joints": ("int", 2, None),
+    "min_component_area": ("float", 0.0, (1.0,)),
+}
+
+
+def check_params(p: "SkeletonParams") -> None:
+    """Check every field of ``p`` against :data:`RULES` (or its default's type); normalise
+    numbers to plain Python ``float``/``int`` in place. Raises :class:`CurveSkelError` naming
+    the parameter."""
+    for f in fields(p):
+        value = getattr(p, f.name)
+        rule = RULES.get(f.name) or _rule_from_default(f)
+        if rule is None:
+            continue
+        setattr(p, f.name, _checked(f.name, value, *rule))
+
+
+def _rule_from_default(f):
+    default = f.default
+    if isinstance(default, bool):
+        return ("bool", None, None)
+    if isinstance(default, numbers.Integral):
+        return ("int", None, None)
+    if isinstance(default, numbers.Real):
+        return ("float", None, None)
+    return None
+
+
+def _checked(name, value, kind, low, high):
+    if kind == "choice":
+        if not isinstance(value, str) or value not in low:
+            raise CurveSkelError(f"unknown {name} {value!r}: {name} must be one of {', '.join(map(repr, low))}")
+        return value
+    if kind == "bool":
+        if isinstance(value, bool) or (type(value).__name__ == "bool_"):
+            return bool(value)
+        raise CurveSkelError(f"{name} must be True or False, got {value!r}")
+    if isinstance(value, (bool, str, bytes)) or not isinstance(value, numbers.Real) \
+            or type(value).__name__ == "bool_":
+        what = "an integer" if kind == "int" else "a number"
+        raise CurveSkelError(f"{name} must be {what}, got {type(value).__name__} {value!r}")
+    if not math.isfinite(float(value)):
+        raise CurveSkelError(f"{name} must be a finite number, got {value!r}")
+    if kind == "int":
+        if not isinstance(value, numbers.Integral) and float(value) != math.floor(float(value)):
+            raise CurveSkelError(f"{name} must be an integer, got {value!r}")
+        value = int(value)
+    else:
+        value = float(value)
+    for bound, is_low in ((low, True), (high, False)):
+        if bound is None:
+            continue
+        strict = isinstance(bound, tuple)
+        b = bound[0] if strict else bound
+        bad = (value <= b if strict else value < b) if is_low else (value >= b if strict else value > b)
+        if bad:
+            raise CurveSkelError(f"{name} must be {_range_text(low, high)}, got {value!r}")
+    return value
+
+
+def _range_text(low, high) -> str:
+    parts = []
+    if low is not None:
+        parts.append(f"> {low[0]:g}" if isinstance(low, tuple) else f">= {low:g}")
+    if high is not None:
+        parts.append(f"< {high[0]:g}" if isinstance(high, tuple) else f"<= {high:g}")
+    return " and ".join(parts)
+
+
+def _unknown_message(unknown, names) -> str:
+    import difflib
+
+    out = []
+    for k in unknown:
+        close = difflib.get_close_matches(str(k), names, n=1)
+        out.append(f"{k!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
+    return f"unknown parameter{'s' if len(out) > 1 else ''} {', '.join(out)}; known: {', '.join(names)}"

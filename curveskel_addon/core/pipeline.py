@@ -20,7 +20,7 @@ from .errors import CurveSkelError
 from .mesh_graph import components
 from .mapping import closest_on_bones
 from .mesh_input import clean_mesh
-from .params import SOLVERS, SkeletonParams
+from .params import SkeletonParams, check_params
 from .postprocess import postprocess, unfold_chains
 from .problem import FitProblem, SolverState
 from .reeb import first_approximation
@@ -55,15 +55,19 @@ class SkeletonRun:
     """
 
     def __init__(self, V, F, params: SkeletonParams | None = None, progress: Progress | None = None):
-        self.params = params or SkeletonParams()
-        _check_params(self.params)
+        self.params = SkeletonParams() if params is None else params
+        if not isinstance(self.params, SkeletonParams):
+            raise CurveSkelError(f"params must be a SkeletonParams, got {type(self.params).__name__}")
+        check_params(self.params)   # again: fields may have been assigned after construction
         self.progress = progress or (lambda stage, fraction: None)
         self.timings: dict[str, float] = {}
         with self._timed("clean"):
-            self.mesh = clean_mesh(V, F)
+            self.mesh = clean_mesh(V, F, min_component_area=self.params.min_component_area)
             self._input_V = np.asarray(V, dtype=np.float64)
         with self._timed("components"):
-            self.n_components, self.labels = components(len(self.mesh.V), self.mesh.F)
+            # clean_mesh found them already (None: compute them here)
+            self.n_components, self.labels = (self.mesh.components
+                                              or components(len(self.mesh.V), self.mesh.F))
         self.problem = self._first_approximation()
         self.energy: list[float] = []
         self._state: SolverState | None = None
@@ -288,23 +292,6 @@ class SkeletonRun:
         if self.collapsed:
             meta["collapsed_joints"] = int(self.collapsed)
         return meta
-
-
-def _check_params(p: SkeletonParams) -> None:
-    if p.solver not in SOLVERS:
-        raise CurveSkelError(f"unknown solver {p.solver!r}; choose one of {', '.join(SOLVERS)}")
-    if not (0 < p.spacing <= 0.5):
-        raise CurveSkelError(f"spacing must be in (0, 0.5] of the mesh size, got {p.spacing}")
-    if p.max_iterations < 0:
-        raise CurveSkelError("max_iterations must be >= 0")
-    if not p.tolerance > 0:
-        raise CurveSkelError("tolerance must be > 0")
-    if not (0 <= p.prune <= 1):
-        raise CurveSkelError(f"prune must be in [0, 1], got {p.prune}")
-    if not p.simplify >= 0:
-        raise CurveSkelError(f"simplify must be >= 0, got {p.simplify}")
-    if int(p.candidates) != p.candidates or p.candidates < 1:
-        raise CurveSkelError(f"candidates must be an integer >= 1, got {p.candidates}")
 
 
 def skeletonize(V, F, params: SkeletonParams | None = None, progress: Progress | None = None,
