@@ -5,6 +5,8 @@ Usage (from the repository root, with the project's venv):
 
     .venv/bin/python scripts/bench.py                 # speed: every shared mesh + 100k / 1M procedural
     .venv/bin/python scripts/bench.py --quality       # quality: curveskel default + paper + peers
+                                                      # (+ issue 10's shape measures, skeletons.png)
+    .venv/bin/python scripts/bench.py --figures       # only docs/figures/skeletons.png
 
 Each measurement runs in a fresh subprocess (one per mesh, or per mesh and method), so the peak
 resident memory (``ru_maxrss``) is that run's own and a crash or timeout of one peer does not stop
@@ -295,9 +297,47 @@ def worker_quality(spec: str, method: str, n_samples: int, repeat: int = 1) -> d
         sk = SimpleNamespace(joints=joints, bones=bones, bone=None, t=None)
     t0 = time.perf_counter()
     q = quality(V, F, sk, n_samples=n_samples, seed=0)
+    q.update(shape_of(V, F, joints, bones, spec))
+    save_skeleton(joints, bones, spec, method)
     return {"mesh": spec, "method": method, "seconds": sec, "all_seconds": all_seconds,
             "quality_s": time.perf_counter() - t0,
             "rss_peak_mb": maxrss_mb(), "note": note, **q}
+
+
+#: Keys of ``quality.shape_measures`` reported by the bench (issue 10).
+SHAPE_KEYS = ["to_ref_mean", "to_ref_p95", "from_ref_mean", "from_ref_p95", "length_ratio",
+              "zigzag", "turn_p90", "folds", "fold_pairs"]
+
+
+def shape_of(V, F, joints, bones, spec: str) -> dict:
+    """Issue 10's shape measures of one skeleton against ``REFERENCE/<mesh>.json`` (the
+    reference-free ones only when there is no reference file)."""
+    from curveskel_addon.core.quality import shape_measures
+
+    ref = REFERENCE / f"{stem(spec)}.json"
+    m = shape_measures(V, F, (joints, bones), ref if ref.is_file() else None)
+    return {k: m[k] for k in SHAPE_KEYS if k in m}
+
+
+def save_skeleton(joints, bones, spec: str, method: str) -> Path:
+    """Write a skeleton (joints, bones; no mapping) to ``.bench/skeletons/<method>/<mesh>.json``
+    for the figures."""
+    import numpy as np
+
+    path = OUT / "skeletons" / method / f"{stem(spec)}.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({"format": "curveskel-skeleton/1",
+                                "joints": np.asarray(joints, float).tolist(),
+                                "bones": np.asarray(bones, int).tolist()}))
+    return path
+
+
+def worker_skeleton(spec: str) -> dict:
+    """The default skeleton of one mesh, saved for the figures (``--figures``)."""
+    V, F, _ = load_mesh(spec)
+    joints, bones, _, sec, _ = run_method("curveskel", V, F)
+    path = save_skeleton(joints, bones, spec, "curveskel")
+    return {"mesh": spec, "seconds": sec, "path": str(path), **shape_of(V, F, joints, bones, spec)}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -482,7 +522,9 @@ def run_quality(args) -> None:
             r.setdefault("method", m)
             results.append(r)
             print(f"{r['seconds']:.2f} s, recon {r['recon_mean']:.4f}, inside {r['inside']:.2f}, "
-                  f"joints {r['joints']}" if "error" not in r else r["error"], flush=True)
+                  f"joints {r['joints']}, to_ref {r.get('to_ref_mean', float('nan')):.4f}, "
+                  f"zig-zag {r['zigzag']:.2f}, folds {r['folds']:.3f}"
+                  if "error" not in r else r["error"], flush=True)
     if not args.no_write:
         OUT.mkdir(exist_ok=True)
         (OUT / "quality.json").write_text(json.dumps({"env": env_line(), "notes": notes,
@@ -493,6 +535,11 @@ def run_quality(args) -> None:
         fig = plot_quality(results, specs, runnable)
         if fig:
             body += f"\n![recon and inside per mesh and method]({Path(fig).relative_to('docs')})\n"
+        if "curveskel" in runnable:
+            fig = plot_skeletons([sp for sp in specs if sp in REAL])
+            if fig:
+                body += (f"\n![default skeleton (blue) over the reference curve (orange), two "
+                         f"views per mesh]({Path(fig).relative_to('docs')})\n")
         write_section("quality", body)
         print(f"\nwrote {DOC.relative_to(ROOT)} (quality) and .bench/quality.json")
 
@@ -570,6 +617,7 @@ def quality_markdown(results, specs, methods, notes, args) -> str:
         + (f" --samples {args.samples}" if args.samples != 20000 else "") \
         + (f" --quality-repeat {args.quality_repeat}" if args.quality_repeat != 1 else "")
     note_txt = "\n".join(f"- {n}" for n in notes) or "- every peer was installed."
+    shape_txt = shape_markdown(by, specs, methods)
     return f"""## Quality (issue 5)
 
 Command: `.venv/bin/{cmd}` — {env_line()}.
@@ -608,6 +656,93 @@ Per mesh: topology matches; inside ≥ 0.98; recon mean ≤ CGAL's; joints ≤ 3
 peer ("rival") that meets the three quality points (topology, inside, recon ≤ CGAL).
 Average recon ratio to CGAL over these meshes: **{mean_ratio:.2f}** (target ≤ {TARGETS['recon_ratio_mean']}:
 {"met" if mean_ratio <= TARGETS['recon_ratio_mean'] else "**not met**"}).
+
+{ttable}
+
+{shape_txt}
+"""
+
+
+def shape_markdown(by: dict, specs, methods) -> str:
+    """Issue 10: shape measures of every method against the reference curves, and the targets
+    of curveskel's default (every target of the issue, recon/inside/topology included)."""
+    import statistics
+
+    rows = []
+    for spec in specs:
+        s = stem(spec)
+        for m in methods:
+            r = by.get((spec, m))
+            if r is None or "error" in r or "zigzag" not in r:
+                continue
+            rows.append([s, m, f"{r['to_ref_mean']:.4f}" if "to_ref_mean" in r else "–",
+                         f"{r['to_ref_p95']:.4f}" if "to_ref_p95" in r else "–",
+                         f"{r['from_ref_mean']:.4f}" if "from_ref_mean" in r else "–",
+                         f"{r['from_ref_p95']:.4f}" if "from_ref_p95" in r else "–",
+                         f"{r['length_ratio']:.2f}" if "length_ratio" in r else "–",
+                         f"{r['zigzag']:.2f}", f"{r['turn_p90']:.0f}°", f"{r['folds']:.3f}",
+                         r["joints"]])
+    table = md_table(["mesh", "method", "to_ref mean", "to_ref p95", "from_ref mean",
+                      "from_ref p95", "length ÷ ref", "zig-zag", "turn p90", "folds", "joints"], rows)
+    T = SHAPE_TARGETS
+    lo, hi = T["length"]
+    trows, ratios, to_refs, all_met = [], [], [], 0
+    yes = lambda b, v: ("yes" if b else "**no**") + f" ({v})"  # noqa: E731
+    for spec in specs:
+        s = stem(spec)
+        r = by.get((spec, "curveskel"))
+        if r is None or "error" in r or "to_ref_mean" not in r:
+            continue
+        cg = CGAL.get(s)
+        ratio = r["recon_mean"] / cg[0] if cg else None
+        if ratio is not None:
+            ratios.append(ratio)
+        to_refs.append(r["to_ref_mean"])
+        mk = shape_marks({**r, "recon_ratio": ratio})
+        all_met += all(mk.values())
+        trows.append([s, yes(mk["topology"], "✓" if r["topology_match"] else
+                             f"{r['skeleton_components']}c/{r['skeleton_cycles']}g"),
+                      yes(mk["inside"], f"{r['inside']:.3f}"), yes(mk["joints"], r["joints"]),
+                      yes(mk["recon"], f"{f3(ratio, 2)}×"), yes(mk["zigzag"], f"{r['zigzag']:.2f}"),
+                      yes(mk["folds"], f"{r['folds']:.3f}"), yes(mk["length"], f"{r['length_ratio']:.2f}"),
+                      yes(mk["to_ref"], f"{r['to_ref_mean']:.4f}"),
+                      yes(mk["from_ref"], f"{r['from_ref_mean']:.4f}"),
+                      ", ".join(k for k, v in mk.items() if not v) or "none"])
+    if trows:
+        med = statistics.median(to_refs)
+        mean_ratio = sum(ratios) / len(ratios) if ratios else float("nan")
+        ok = lambda b: "met" if b else "**not met**"  # noqa: E731
+        summary = (f"Meshes meeting every per-mesh target: **{all_met} of {len(trows)}**. "
+                   f"Median to_ref: **{med:.4f}** D (target ≤ {T['to_ref_median']}: "
+                   f"{ok(med <= T['to_ref_median'])}); mean recon ratio to CGAL: "
+                   f"**{mean_ratio:.2f}** (target ≤ {T['recon_ratio_mean']}: "
+                   f"{ok(mean_ratio <= T['recon_ratio_mean'])}).")
+        ttable = md_table(["mesh", "topology", "inside ≥ 0.98", f"joints ≤ {T['joints']}",
+                           f"recon ≤ {T['recon_ratio']}× CGAL", f"zig-zag ≤ {T['zigzag']}",
+                           "folds 0", f"length {lo}–{hi}", f"to_ref ≤ {T['to_ref']}",
+                           f"from_ref ≤ {T['from_ref']}", "misses"], trows)
+    else:
+        summary, ttable = "curveskel's default was not run.", ""
+    return f"""### Shape against the reference curves (issue 10)
+
+`curveskel_addon.core.quality.shape_measures(V, F, skeleton, reference)` against
+`../shared/reference/<mesh>.json` (CGAL mean-curvature-flow skeletons; PyGEL3D's for the
+octopus); every distance / D. *to_ref*: points every D/400 along the method's bones → nearest of
+points every D/2000 along the reference's bones (spurious or off-centre parts); *from_ref*: the
+reverse (missed parts); *length ÷ ref*: Σ bone lengths ÷ the reference's; *zig-zag*: fraction of
+degree-2 joints where the chain turns by more than 60°; *turn p90*: 90th percentile of those
+turns; *folds*: bone pairs within 0.01 D of each other but more than 0.1 D apart along the
+skeleton (same connected part), ÷ bones. Skeletons saved in `.bench/skeletons/<method>/`.
+
+{table}
+
+#### Targets of issue 10 for curveskel's default
+
+Per mesh: topology exact; inside ≥ {T['inside']}; joints ≤ {T['joints']}; recon mean ≤
+{T['recon_ratio']}× CGAL's; zig-zag ≤ {T['zigzag']}; folds {T['folds']:g}; length ratio {lo}–{hi};
+to_ref ≤ {T['to_ref']} D; from_ref ≤ {T['from_ref']} D. Over the meshes: median to_ref ≤
+{T['to_ref_median']} D, mean recon ratio ≤ {T['recon_ratio_mean']}.
+{summary}
 
 {ttable}
 """
@@ -686,9 +821,113 @@ def plot_quality(results, specs, methods) -> str | None:
     return str(path.relative_to(ROOT))
 
 
+def run_figures(args) -> None:
+    """--figures: the default skeleton of each shared mesh (fresh subprocess each), then
+    docs/figures/skeletons.png."""
+    specs = [sp for sp in (args.meshes or REAL) if sp in REAL]
+    for spec in specs:
+        print(f"[figures] {spec} ...", end=" ", flush=True)
+        r = spawn(["skeleton", spec], args.timeout)
+        print(r["error"] if "error" in r else
+              f"{r['seconds']:.2f} s, to_ref {r.get('to_ref_mean', float('nan')):.4f}, "
+              f"zig-zag {r['zigzag']:.2f}, folds {r['folds']:.3f}", flush=True)
+    fig = plot_skeletons(specs)
+    print(f"wrote {fig}" if fig else "matplotlib missing: no figure")
+
+
+def _view_axes(X):
+    """Two orthographic views of a point set: (horizontal, vertical) unit axes for each.
+
+    View 1 faces the two widest principal axes (the largest silhouette); its vertical is the
+    one of them closer to the world's up (+y, the convention of the shared meshes), pointing
+    up. View 2 turns view 1 by 65° about that vertical and tilts it by 20° (an oblique view:
+    depth of the first one, and more than an edge for a flat part).
+    """
+    import numpy as np
+
+    C = X - X.mean(axis=0)
+    _, _, Vt = np.linalg.svd(C[:: max(1, len(C) // 20000)], full_matrices=False)
+    up = np.array([0.0, 1.0, 0.0])
+    k = int(np.argmax([abs(Vt[0] @ up), abs(Vt[1] @ up)]))
+    vert = Vt[k] * (np.sign(Vt[k] @ up) or 1.0)
+    hor = Vt[1 - k]
+    depth = np.cross(hor, vert)
+    a, t = np.radians(65), np.radians(20)
+    h2 = np.cos(a) * hor + np.sin(a) * depth
+    d2 = np.cross(h2, vert)
+    v2 = np.cos(t) * vert + np.sin(t) * d2
+    return [(hor, vert), (h2, v2)]
+
+
+def plot_skeletons(specs, method: str = "curveskel") -> str | None:
+    """docs/figures/skeletons.png: each mesh (faint surface samples), its reference curve
+    (orange) and the method's skeleton from ``.bench/skeletons/<method>/`` (blue, joints as
+    dots), two orthographic views per mesh, measures in the title."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return None
+    import numpy as np
+
+    from curveskel_addon.core.quality import curve_arrays, sample_surface, shape_measures
+
+    items = []
+    for spec in specs:
+        sk_path = OUT / "skeletons" / method / f"{stem(spec)}.json"
+        ref_path = REFERENCE / f"{stem(spec)}.json"
+        if sk_path.is_file() and ref_path.is_file():
+            items.append((spec, sk_path, ref_path))
+    if not items:
+        return None
+    ncol = 4                                     # two meshes per row, two views each
+    nrow = (len(items) + 1) // 2
+    fig, axes = plt.subplots(nrow, ncol, figsize=(16, 3.6 * nrow))
+    axes = np.atleast_2d(axes)
+    for ax in axes.ravel():
+        ax.set_axis_off()
+    for n, (spec, sk_path, ref_path) in enumerate(items):
+        V, F, _ = load_mesh(spec)
+        X, B = curve_arrays(sk_path)
+        Xr, Br = curve_arrays(ref_path)
+        m = shape_measures(V, F, (X, B), (Xr, Br))
+        S = sample_surface(V, F, 6000, np.random.default_rng(0))
+        for v, (h, u) in enumerate(_view_axes(V[np.unique(F)])):
+            ax = axes[n // 2, 2 * (n % 2) + v]
+            P = lambda Y: (Y @ h, Y @ u)  # noqa: E731
+            ax.scatter(*P(S), s=0.6, c="0.55", alpha=0.18, linewidths=0, rasterized=True)
+            for Y, bones, col, lw, z in ((Xr, Br, "#f28e2b", 1.3, 2), (X, B, "#1f4e9c", 1.6, 3)):
+                if len(bones):
+                    a, b = P(Y[bones[:, 0]]), P(Y[bones[:, 1]])
+                    ax.plot(np.stack([a[0], b[0]]), np.stack([a[1], b[1]]), color=col, lw=lw,
+                            zorder=z, solid_capstyle="round")
+            ax.scatter(*P(X), s=5, c="#1f4e9c", zorder=4, linewidths=0)
+            ax.set_aspect("equal")
+            if v == 0:
+                ax.set_title(f"{stem(spec)}: {len(X)} joints\nto_ref {m['to_ref_mean']:.3f} D, "
+                             f"from_ref {m['from_ref_mean']:.3f} D, length ×{m['length_ratio']:.2f}, "
+                             f"zig-zag {m['zigzag']:.2f}, folds {m['folds']:.2f}",
+                             fontsize=9, loc="left")
+    from matplotlib.lines import Line2D
+
+    fig.legend([Line2D([], [], color="#1f4e9c", lw=2), Line2D([], [], color="#f28e2b", lw=2)],
+               [f"{method} (default parameters)", "reference curve skeleton (shared/reference)"],
+               loc="upper center", ncol=2, fontsize=10, frameon=False)
+    fig.tight_layout(rect=(0, 0, 1, 0.975))
+    path = ROOT / "docs" / "figures" / "skeletons.png"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return str(path.relative_to(ROOT))
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quality", action="store_true", help="quality benchmark against peers (issue 5)")
+    ap.add_argument("--figures", action="store_true",
+                    help="only docs/figures/skeletons.png: default skeleton of each shared mesh "
+                         "over its reference (also drawn by --quality)")
     ap.add_argument("--meshes", nargs="+", help="subset: shared file names or procedural names "
                     f"({', '.join(PROCEDURAL)})")
     ap.add_argument("--methods", nargs="+", choices=METHODS, help="quality: subset of methods")
@@ -706,12 +945,16 @@ def main(argv=None) -> None:
         kind, *rest = args._worker
         if kind == "speed":
             res = worker_speed(rest[0], int(rest[1]) if len(rest) > 1 else 1)
+        elif kind == "skeleton":
+            res = worker_skeleton(rest[0])
         else:
             res = worker_quality(rest[0], rest[1], int(rest[2]), int(rest[3]) if len(rest) > 3 else 1)
         print(json.dumps(res, default=lambda o: o.item() if hasattr(o, "item") else str(o)))
         return
     if args.quality:
         run_quality(args)
+    elif args.figures:
+        run_figures(args)
     else:
         run_speed(args)
 
