@@ -191,7 +191,7 @@ def _activate(ob) -> None:
 
 def _material(name, color, *, alpha=1.0, roughness=0.5, emission=0.0):
     mat = bpy.data.materials.new(name)
-    if hasattr(mat, "use_nodes") and not mat.use_nodes:   # always on (and deprecated) in 5.0
+    if bpy.app.version < (5, 0, 0) and not mat.use_nodes:   # always on (and deprecated) since 5.0
         mat.use_nodes = True
     bsdf = next(n for n in mat.node_tree.nodes if n.type == 'BSDF_PRINCIPLED')
     bsdf.inputs["Base Color"].default_value = (*color, 1.0)
@@ -208,7 +208,7 @@ def _xray_material(name, color, *, edge: float = 1.0, blend: float = 0.35):
     """See-through, self-lit surface: transparent where it faces the camera, ``color`` towards its
     outline (Layer Weight "Facing"). No light sampling, so a few samples render it without noise."""
     mat = bpy.data.materials.new(name)
-    if hasattr(mat, "use_nodes") and not mat.use_nodes:
+    if bpy.app.version < (5, 0, 0) and not mat.use_nodes:
         mat.use_nodes = True
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     for n in list(nodes):
@@ -388,7 +388,7 @@ def _lights(coll) -> list:
         out.append(ob)
     world = bpy.context.scene.world or bpy.data.worlds.new("CurveSkel Preview World")
     bpy.context.scene.world = world
-    if hasattr(world, "use_nodes") and not world.use_nodes:
+    if bpy.app.version < (5, 0, 0) and not world.use_nodes:   # as Material.use_nodes
         world.use_nodes = True
     bg = next(n for n in world.node_tree.nodes if n.type == 'BACKGROUND')
     bg.inputs["Color"].default_value = (0.93, 0.94, 0.96, 1.0)
