@@ -321,3 +321,40 @@ def test_agrees_with_shared_shape_check(name, mesh):
 def test_curve_points_without_bones_are_the_joints():
     X = np.array([[0, 0, 0], [1, 2, 3]], float)
     assert np.array_equal(curve_points(X, np.zeros((0, 2), int), 0.1), X)
+
+
+# -- the developer table (scripts/shape_table.py) and the bench's target marks -------------------
+def _script(name):
+    path = Path(__file__).resolve().parents[2] / "scripts" / f"{name}.py"
+    import sys
+    sys.path.insert(0, str(path.parent))
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_shape_table_parses_overrides_and_marks_targets():
+    st = _script("shape_table")
+    from curveskel_addon.core import SkeletonParams
+
+    fields = SkeletonParams().to_dict()
+    sets = []
+    for name, value in fields.items():       # one override of each type present
+        if isinstance(value, bool):
+            sets.append(f"{name}=0")
+        elif isinstance(value, (int, float)) and not isinstance(value, bool):
+            sets.append(f"{name}={value}")
+    got = st.parse_sets(sets, paper=False)
+    for k, v in got.items():
+        assert type(v) is type(fields[k]) and (v == fields[k] or v is False)
+    with pytest.raises(SystemExit):
+        st.parse_sets(["no_such_parameter=1"], paper=False)
+    row = {"mesh": "horse", "joints": 40, "topology_match": True, "inside": 0.99, "recon_mean": 0.005,
+           "recon_ratio": 0.86, "zigzag": 0.2, "folds": 0.0, "length_ratio": 1.1, "to_ref_mean": 0.01,
+           "from_ref_mean": 0.01, "seconds": 1.0, "components": 1, "cycles": 0}
+    marks = st.shape_marks(row)
+    assert [k for k, v in marks.items() if not v] == ["zigzag"]
+    line = st.fmt_row(row)
+    assert "0.20*" in line and line.count("*") == 1
+    assert "zigzag 0" in st.summary([row]) and "all 0" in st.summary([row])
