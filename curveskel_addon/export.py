@@ -1,4 +1,10 @@
-"""Export a rigged mesh and its armature with Blender's own glTF (.glb) and FBX exporters."""
+"""Export a rigged mesh and its armature with Blender's own glTF (.glb) and FBX exporters.
+
+Only the two objects are written (selection export). The GLB passes the Khronos glTF Validator
+with no error and no warning (tests/blender/test_rig_edits.py runs it when node is available).
+Blender's glTF *importer* adds a hidden "Icosphere" (its bone display shape, in the collection
+"glTF_not_exported") unless imported with ``disable_bone_shape=True``: it is not in the file.
+"""
 
 from __future__ import annotations
 
@@ -50,10 +56,13 @@ def export_rig(context, mesh_obj, arm_obj, filepath, *, fmt: str | None = None) 
     if prev_active is not None and prev_active.mode != 'OBJECT':
         bpy.ops.object.mode_set(mode='OBJECT')
     t0 = time.perf_counter()
-    # The exporters expect a skinned mesh to be a child of its armature (curveskel binds through
-    # the modifier only): parent it for the export, keeping its world placement, then restore.
+    # FBX expects a skinned mesh to be a child of its armature (curveskel binds through the
+    # modifier only): parent it for the export, keeping its world placement, then restore. glTF
+    # wants the opposite (a skinned mesh node must be a root node, else the Khronos validator
+    # warns NODE_SKINNED_MESH_NON_ROOT): Blender's exporter finds the armature through the
+    # modifier, so the mesh stays unparented.
     saved = None
-    if mesh_obj.parent != arm_obj:
+    if fmt == "FBX" and mesh_obj.parent != arm_obj:
         saved = (mesh_obj.parent, mesh_obj.parent_type, mesh_obj.parent_bone,
                  mesh_obj.matrix_parent_inverse.copy(), mesh_obj.matrix_basis.copy())
         mw = mesh_obj.matrix_world.copy()

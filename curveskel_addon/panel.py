@@ -12,7 +12,8 @@ from . import results
 from .preferences import get_preferences
 from .properties import ADVANCED_NAMES, OPTION_NAMES, PARAM_NAMES, draw_settings, settings_dict
 
-__all__ = ["CURVESKEL_PT_main", "CURVESKEL_PT_advanced", "CURVESKEL_PT_result", "CLASSES"]
+__all__ = ["CURVESKEL_PT_main", "CURVESKEL_PT_advanced", "CURVESKEL_PT_result", "CURVESKEL_PT_bind",
+           "CLASSES"]
 
 
 def _active_result(context) -> tuple[str | None, dict]:
@@ -162,10 +163,39 @@ class CURVESKEL_PT_result(bpy.types.Panel):
             layout.prop(sil, "display_type", text="Silhouette Display")
 
 
+class CURVESKEL_PT_bind(bpy.types.Panel):
+    """Bind the active mesh to its armature as it is now, with a choice of weights."""
+
+    bl_space_type = 'VIEW_3D'
+    bl_region_type = 'UI'
+    bl_category = "CurveSkel"
+    bl_label = "Bind Mesh"
+    bl_parent_id = "CURVESKEL_PT_main"
+
+    def draw(self, context):
+        from .ops_bind import METHOD_ITEMS, bind_targets
+
+        layout = self.layout
+        mesh, arm, problem = bind_targets(context)      # pointers only: cheap at every redraw
+        if problem is not None:
+            layout.label(text=problem, icon='INFO')
+        else:
+            layout.label(text=f"{mesh.name} \u2192 {arm.name}", icon='ARMATURE_DATA')
+        col = layout.column(align=True)
+        col.enabled = problem is None
+        for ident, label, _ in METHOD_ITEMS:
+            op = col.operator("curveskel.bind", text=f"Bind: {label} Weights",
+                              icon='MOD_ARMATURE' if ident == "SURFACE" else 'LIGHT_POINT')
+            op.method = ident
+
+
 def _menu_entry(self, context):
     self.layout.operator("curveskel.generate", icon='ARMATURE_DATA')
+    self.layout.operator_menu_enum("curveskel.bind", "method", text="CurveSkel: Bind Mesh",
+                                   icon='MOD_ARMATURE')
 
 
 MENU_ENTRIES = ((bpy.types.VIEW3D_MT_object, _menu_entry),)
 CLASSES = (CURVESKEL_OT_select_armature, CURVESKEL_OT_toggle_silhouette,
-           CURVESKEL_OT_reset_settings, CURVESKEL_PT_main, CURVESKEL_PT_advanced, CURVESKEL_PT_result)
+           CURVESKEL_OT_reset_settings, CURVESKEL_PT_main, CURVESKEL_PT_advanced, CURVESKEL_PT_result,
+           CURVESKEL_PT_bind)
