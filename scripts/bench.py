@@ -296,8 +296,8 @@ def worker_quality(spec: str, method: str, n_samples: int, repeat: int = 1) -> d
     if sk is None:
         sk = SimpleNamespace(joints=joints, bones=bones, bone=None, t=None)
     t0 = time.perf_counter()
-    q = quality(V, F, sk, n_samples=n_samples, seed=0)
-    q.update(shape_of(V, F, joints, bones, spec))
+    ref = REFERENCE / f"{stem(spec)}.json"
+    q = quality(V, F, sk, n_samples=n_samples, seed=0, reference=ref if ref.is_file() else None)
     save_skeleton(joints, bones, spec, method)
     return {"mesh": spec, "method": method, "seconds": sec, "all_seconds": all_seconds,
             "quality_s": time.perf_counter() - t0,

@@ -46,6 +46,28 @@ joints, bones, leaves, branch_points
     Sizes; leaves have degree 1, branch points degree >= 3.
 D, measure_seconds
     The normalising length, and seconds spent per group of measures.
+zigzag, turn_p90, folds, fold_pairs; with ``reference=``: to_ref_mean, to_ref_p95,
+from_ref_mean, from_ref_p95, length_ratio
+    The shape of the curve (issue 10), below.
+
+Shape of the curve (issue 10)
+-----------------------------
+recon, inside and E reward balls that fill the shape even when the bones zig-zag or criss-cross
+inside it. :func:`shape_measures` (against a reference curve skeleton) and
+:func:`curve_measures` (on its own, for use inside the pipeline) look at the curve:
+
+to_ref_mean, to_ref_p95 / from_ref_mean, from_ref_p95
+    Points every D/400 along our bones -> distance to the nearest of the points every D/2000
+    along the reference's bones (mean, 95th percentile); and the reverse.
+length_ratio
+    Sum of bone lengths / sum of the reference's bone lengths.
+zigzag
+    Fraction of degree-2 joints where the chain turns by more than 60 degrees (the angle between
+    ``x_j - x_a`` and ``x_b - x_j``).
+folds
+    Bone pairs whose segments pass within 0.01 D of each other although the shortest path
+    between them along the skeleton is longer than 0.1 D (pairs in different connected parts do
+    not count), divided by the number of bones.
 
 Cost
 ----
@@ -776,7 +798,7 @@ def mesh_topology(V, F):
 # ---------------------------------------------------------------------------------------------
 # All measures
 # ---------------------------------------------------------------------------------------------
-def quality(V, F, skeleton, *, n_samples=20000, seed=0, bone_samples=10) -> dict:
+def quality(V, F, skeleton, *, n_samples=20000, seed=0, bone_samples=10, reference=None) -> dict:
     """Measures of a skeleton's quality against its mesh (see the module docstring).
 
     Parameters
@@ -794,12 +816,17 @@ def quality(V, F, skeleton, *, n_samples=20000, seed=0, bone_samples=10) -> dict
         Seed of every random choice; results are reproducible.
     bone_samples : int
         Points per bone for ``inside``.
+    reference : skeleton, optional
+        A reference curve skeleton in any form of :func:`curve_arrays` (e.g. the path of
+        ``../shared/reference/<mesh>.json``): adds ``to_ref_*``, ``from_ref_*`` and
+        ``length_ratio`` (:func:`shape_measures`).
 
     Returns
     -------
     dict
         Floats and ints, JSON-ready; keys as in the module docstring plus ``D`` and
-        ``measure_seconds`` (time per measure group).
+        ``measure_seconds`` (time per measure group); always the reference-free shape measures
+        ``zigzag``, ``turn_p90``, ``folds``, ``fold_pairs`` (:func:`curve_measures`).
 
     Examples
     --------
@@ -873,6 +900,13 @@ def quality(V, F, skeleton, *, n_samples=20000, seed=0, bone_samples=10) -> dict
     out["joints"] = int(len(joints))
     out["bones"] = int(len(bones))
     secs["topology"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    sm = shape_measures(V, F, (joints, bones), reference, D=D)
+    out.update({k: sm[k] for k in ("zigzag", "turn_p90", "folds", "fold_pairs", "to_ref_mean",
+                                   "to_ref_p95", "from_ref_mean", "from_ref_p95", "length_ratio")
+                if k in sm})
+    secs["shape"] = time.perf_counter() - t0
     out["measure_seconds"] = secs
     return out
 

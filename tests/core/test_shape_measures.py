@@ -358,3 +358,15 @@ def test_shape_table_parses_overrides_and_marks_targets():
     line = st.fmt_row(row)
     assert "0.20*" in line and line.count("*") == 1
     assert "zigzag 0" in st.summary([row]) and "all 0" in st.summary([row])
+
+
+def test_quality_reports_shape_measures():
+    from curveskel_addon.core.quality import quality
+
+    V, F = capsule(radius=1.0, length=6.0, n_around=16, n_body=10, cap_rings=4)
+    sk = Skeleton(np.array([[0, 0, 0, 1], [0, 0, 3, 1], [0, 0, 6, 1]], float),
+                  np.array([[0, 1], [1, 2]]), np.zeros(0, int), np.zeros(0))
+    q = quality(V, F, sk, n_samples=500)
+    assert q["zigzag"] == 0 and q["folds"] == 0 and "to_ref_mean" not in q
+    q = quality(V, F, sk, n_samples=500, reference=chain(line([0, 0, 0], [0, 0, 6], 6)))
+    assert q["length_ratio"] == pytest.approx(1.0) and q["to_ref_mean"] <= 1 / 4000
