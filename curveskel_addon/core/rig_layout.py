@@ -665,26 +665,35 @@ def named_rig(lay: RigLayout, plane: MirrorPlane | None = None, *, pair_tol: flo
         near_plane = {c: bool(np.abs(sd[c]).max() <= central_tol * diag) for c in order}
         near_plane[-1] = True                                  # the root joints
         length = {c: float(np.sum(np.linalg.norm(np.diff(pts[c], axis=0), axis=1))) for c in order}
-        costs = []
-        for i, a in enumerate(order):
-            for b in order[i + 1:]:
-                ma, mb = float(np.mean(sd[a])), float(np.mean(sd[b]))
-                if ma * mb >= 0:
-                    continue
-                cost = _chain_distance(pts[a], plane.reflect(pts[b]))
-                limit = pair_tol * max(length[a], length[b]) + 0.02 * diag
-                # the chains must lie mostly off the plane (else both are central)
-                if cost < limit and min(abs(ma), abs(mb)) > 0.5 * cost:
-                    costs.append((cost, a, b))
-        for cost, a, b in sorted(costs):
-            if a in partner or b in partner:
-                continue
+        def pair_cost(a, b):
+            ma, mb = float(np.mean(sd[a])), float(np.mean(sd[b]))
+            if ma * mb >= 0:
+                return None
             pa, pb = parent_chain[a], parent_chain[b]
             # a pair's parents are themselves a pair, the same chain, or both near the plane
             if not (pa == pb or partner.get(pa) == pb or (near_plane[pa] and near_plane[pb]
                                                           and pa not in partner and pb not in partner)):
+                return None
+            cost = _chain_distance(pts[a], plane.reflect(pts[b]))
+            limit = pair_tol * max(length[a], length[b]) + 0.02 * diag
+            # the chains must lie mostly off the plane (else both are central)
+            if cost < limit and min(abs(ma), abs(mb)) > 0.5 * cost:
+                return cost
+            return None
+
+        # parents first, so that children of a pair can pair in turn
+        for a in order:
+            if a in partner:
                 continue
-            partner[a], partner[b] = b, a
+            best = None
+            for b in order:
+                if b == a or b in partner:
+                    continue
+                cost = pair_cost(a, b)
+                if cost is not None and (best is None or cost < best[0]):
+                    best = (cost, b)
+            if best is not None:
+                partner[a], partner[best[1]] = best[1], a
         for c in order:
             if c in partner:
                 kind[c] = "limb"

@@ -185,3 +185,104 @@ def test_real_skeletons(name):
         leaves = [r for r in range(1, lay.n_bones) if lay.tail_mode[r] == BLEND_NONE
                   and not np.any(lay.parent == r)]
         assert len(leaves) == 4
+
+
+# -- mirror plane and readable names (issue 14) --------------------------------------------------------
+from curveskel_addon.core.rig_layout import MirrorPlane, mirror_plane, named_rig  # noqa: E402
+
+READABLE = re.compile(r"^(root(\.\d{2})?|(spine|limb|chain)\d*(\.[LR])?\.\d{2,})$")
+
+
+def _flip(name):
+    """Blender's flip for our names (.L <-> .R before the number)."""
+    return name.replace(".L.", ".#.").replace(".R.", ".L.").replace(".#.", ".R.")
+
+
+def _rotation(seed):
+    q, _ = np.linalg.qr(np.random.default_rng(seed).normal(size=(3, 3)))
+    return q * np.sign(np.linalg.det(q))
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_mirror_plane_found_in_any_orientation(seed):
+    rng = np.random.default_rng(seed)
+    half = rng.normal(size=(800, 3)) * [1.0, 2.0, 0.5] + [1.5, 0, 0]
+    P = np.concatenate([half, half * [-1, 1, 1]])                    # symmetric about x = 0
+    Rm = _rotation(seed + 10)
+    t = np.array([0.3, -1.0, 2.0])
+    pl = mirror_plane(P @ Rm.T + t)
+    n_true = Rm @ np.array([1.0, 0.0, 0.0])
+    assert pl is not None and abs(abs(pl.normal @ n_true) - 1) < 1e-6
+    assert abs(pl.signed_distance(t)) < 1e-6 and pl.error < 1e-6
+    # three boxes of different lengths along x, y, z from one corner: no mirror plane
+    boxes = [rng.uniform(0, 1, size=(3000, 3)) * ext for ext in ([1, .2, .2], [.2, 2, .2], [.2, .2, 3])]
+    assert mirror_plane(np.concatenate(boxes)) is None
+
+
+def test_mirror_plane_prefers_local_x():
+    V, F = meshes.capsule()            # symmetric about x = 0 and y = 0 (and more)
+    pl = mirror_plane(V)
+    assert np.allclose(pl.normal, [1, 0, 0]) and abs(pl.offset) < 1e-9
+    assert len(mirror_plane(V, all_planes=True)) >= 2
+
+
+def symmetric_body(noise=0.01, seed=0):
+    """A spine on x = 0 (slightly off), arms to +-x with 3 and 4 bones (a skeleton that is
+    symmetric in shape, not in topology), a hand with two fingers on each side."""
+    rng = np.random.default_rng(seed)
+    J = [[0, 0, 0], [0, 0, 1], [0, 0, 2], [0, 0, 3]]                  # 0..3 spine, 2 the shoulders
+    B = [[0, 1], [1, 2], [2, 3]]
+
+    def chain(start, pts):
+        prev = start
+        for p in pts:
+            J.append(p)
+            B.append([prev, len(J) - 1])
+            prev = len(J) - 1
+        return prev
+    hl = chain(2, [[0.7, 0, 2], [1.4, 0, 2], [2.0, 0, 2]])
+    hr = chain(2, [[-0.5, 0, 2], [-1.0, 0, 2], [-1.5, 0, 2], [-2.0, 0, 2]])
+    for h, s in ((hl, 1), (hr, -1)):
+        chain(h, [[s * 2.5, 0, 2.2]])
+        chain(h, [[s * 2.5, 0, 1.8], [s * 2.9, 0, 1.7]])
+    J = np.array(J, float) + rng.normal(scale=noise, size=(len(J), 3))
+    return np.c_[J, np.full(len(J), 0.2)], np.array(B)
+
+
+def test_named_rig_pairs_and_mirrors_exactly():
+    J, B = symmetric_body()
+    lay = rig_layout(J, B, root=0)
+    plane = MirrorPlane(np.array([1.0, 0.0, 0.0]), 0.0, 0.0)
+    rig = named_rig(lay, plane)
+    assert len(set(rig.names)) == rig.n_bones and all(READABLE.match(n) for n in rig.names), rig.names
+    assert rig.meta["pairs"] == 3                                    # arms and both fingers
+    idx = {n: k for k, n in enumerate(rig.names)}
+    left = [n for n in rig.names if ".L." in n]
+    assert len(left) == 4 + 1 + 2                                     # the longer arm: 4 bones
+    for n in left:
+        a, b = idx[n], idx[_flip(n)]
+        assert rig.mirror[a] == b and rig.mirror[b] == a
+        assert np.allclose(plane.reflect(rig.heads[a]), rig.heads[b], atol=1e-12)
+        assert np.allclose(plane.reflect(rig.tails[a]), rig.tails[b], atol=1e-12)
+        assert np.allclose(plane.reflect_vector(rig.z_axis[a]), rig.z_axis[b], atol=1e-12)
+        assert rig.heads[a][0] >= -1e-12 and rig.tails[a][0] > 0     # .L on the normal's side
+        assert rig.parent[a] < 0 or rig.parent[b] == rig.mirror[rig.parent[a]]
+    central = [k for k, n in enumerate(rig.names) if n.startswith(("spine", "root"))]
+    assert np.abs(rig.heads[central, 0]).max() < 1e-12 and np.abs(rig.tails[central, 0]).max() < 1e-12
+    # a rig: parents first, connected heads on their parent's tail, unit rolls perpendicular
+    for r in range(rig.n_bones):
+        assert rig.parent[r] < r
+        if rig.connect[r]:
+            assert np.allclose(rig.heads[r], rig.tails[rig.parent[r]])
+    d = rig.tails - rig.heads
+    assert np.all(np.linalg.norm(d, axis=1) > 0)
+    assert np.abs(np.einsum("ij,ij->i", d, rig.z_axis)).max() < 1e-9
+
+
+def test_named_rig_without_plane_keeps_the_layout():
+    J, B = symmetric_body()
+    lay = rig_layout(J, B, root=0)
+    rig = named_rig(lay)
+    assert rig.n_bones == lay.n_bones and np.allclose(rig.heads, lay.heads) and np.allclose(rig.tails, lay.tails)
+    assert all(READABLE.match(n) and ".L" not in n and ".R" not in n for n in rig.names)
+    assert rig.names[0] == "root" and np.array_equal(rig.parent, lay.parent)

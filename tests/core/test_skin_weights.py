@@ -157,3 +157,92 @@ def test_smooth_weights_keeps_four_largest():
     assert i2[0, 0] == 0 and (i2[0] >= 0).sum() == 4
     assert smoothing_iterations(1.0, 0.1, cap=50) == 50 and smoothing_iterations(0.1, 0.1) == 1
     assert smoothing_iterations(0.0, 0.1) == 0
+
+
+# -- weights from the bones as they are (issue 14) ---------------------------------------------------
+from curveskel_addon.core.rig_layout import BLEND_HUB as _HUB, BLEND_NONE as _NONE, BLEND_SYMMETRIC as _SYM  # noqa: E402
+from curveskel_addon.core.skin_weights import bone_partners, bone_weights, surface_labels  # noqa: E402
+
+GAP, FR = 0.03, 0.1
+FX = FR + GAP / 2
+
+
+def two_fingers():
+    """Palm (radius 0.25, top at z = 0) + two fingers of radius 0.1 whose surfaces are 0.03 apart."""
+    from meshes import _manifold_from, _to_arrays, tube_along
+
+    union = _manifold_from(*tube_along(np.array([[0.0, 0.0, -0.4], [0.0, 0.0, 0.0]]), 0.25, 32))
+    for sx in (-FX, FX):
+        path = np.stack([np.full(40, sx), np.zeros(40), np.linspace(-0.05, 1.0, 40)], 1)
+        union = union + _manifold_from(*tube_along(path, FR, 24))
+    return _to_arrays(union)
+
+
+def hand_bones(right_tip=(FX, 0.0, 1.0)):
+    """palm, then two 2-bone fingers hanging from the palm's tail (a junction)."""
+    H = [(0, 0, -0.4), (-FX, 0, 0.2), (-FX, 0, 0.6), (FX, 0, 0.2), (FX, 0, 0.6)]
+    T = [(0, 0, 0.2), (-FX, 0, 0.6), (-FX, 0, 1.0), (FX, 0, 0.6), right_tip]
+    return np.array(H, float), np.array(T, float), np.array([-1, 0, 1, 0, 3])
+
+
+def test_bone_partners_chain_junction_root_and_detached():
+    # root bone 0 at the origin pointing up; bones 1 and 2 leave its head; 1 -> 3 a chain;
+    # 3 ends at a junction with 4 and 5; 6 is detached from its parent; 7 does not deform
+    H = np.array([[0, 0, 0], [0, 0, 0], [0, 0, 0], [1, 0, 0], [2, 0, 0], [2, 0, 0], [5, 5, 5], [2, 0, 0]], float)
+    T = np.array([[0, 0, 1], [1, 0, 0], [-1, 0, 0], [2, 0, 0], [3, 0, 0], [2, 1, 0], [6, 5, 5], [2, 0, 1]], float)
+    par = np.array([-1, 0, 0, 1, 3, 3, 4, 3])
+    deform = np.array([1, 1, 1, 1, 1, 1, 1, 0], bool)
+    hm, tm, hp, tp, att = bone_partners(H, T, par, deform)
+    assert hm[1] == hm[2] == _HUB and hp[1] == hp[2] == 0           # under the root bone
+    assert tm[1] == _SYM and tp[1] == 3 and hm[3] == _SYM and hp[3] == 1   # a chain joint
+    assert hm[4] == hm[5] == _HUB and hp[4] == hp[5] == 3 and tm[3] == _NONE   # a junction
+    assert hm[6] == _NONE and not att[6]                            # detached
+    assert hm[7] == _NONE and not att[7] and tp[3] == -1            # not deforming: no partner
+
+
+def test_two_fingers_0_03_apart_share_no_weight():
+    V, F = two_fingers()
+    H, T, par = hand_bones()
+    idx, w, info = bone_weights(V, F, H, T, par)
+    check_weights(idx, w, len(V))
+    Wd = dense(idx, w, len(H))
+    left, right = (V[:, 0] < -GAP / 2) & (V[:, 2] > 0.25), (V[:, 0] > GAP / 2) & (V[:, 2] > 0.25)
+    assert Wd[right][:, [1, 2]].max() == 0.0 and Wd[left][:, [3, 4]].max() == 0.0
+    up = V[:, 2] > 0.4
+    assert Wd[left & up][:, [1, 2]].sum(axis=1).min() > 0.9   # each finger is its own
+    # weights are continuous along a finger: the chain joint at z = 0.6 is a 50/50 blend
+    ring = left & (np.abs(V[:, 2] - 0.6) < 0.02)
+    assert ring.any() and np.allclose(Wd[ring][:, 1], 0.5, atol=0.1)
+
+
+def test_surface_restriction_moves_islands_to_the_part_they_lie_on():
+    """A bone of the right finger bent over towards the left one: the left finger's inner side
+    is closer to it in space, but that patch is not connected to the right finger's vertices
+    on the surface, so it stays with the left finger."""
+    V, F = two_fingers()
+    H, T, par = hand_bones(right_tip=(-0.02, 0.0, 1.0))
+    E = np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1), axis=0)
+    label, s, dist, closest = surface_labels(V, E, H, T)
+    left = (V[:, 0] < -GAP / 2) & (V[:, 2] > 0.3)
+    assert np.isin(closest[left], [3, 4]).sum() > 5               # straight-line distance is fooled
+    assert not np.isin(label[left], [3, 4]).any()                 # the surface is not
+    assert np.all((s >= 0) & (s <= 1)) and np.all(dist >= 0)
+    idx, w, info = bone_weights(V, F, H, T, par)
+    assert info["relabelled"] > 5
+    assert dense(idx, w, len(H))[left][:, [3, 4]].max() == 0.0
+
+
+def test_bone_weights_rejects_bad_input():
+    V, F = meshes.capsule()
+    H = np.array([[0, 0, 0.0], [0, 0, 3.0]])
+    T = np.array([[0, 0, 3.0], [0, 0, 6.0]])
+    with pytest.raises(CurveSkelError):
+        bone_weights(V, F, H, T, [-1, 0], blend=0.7)
+    with pytest.raises(CurveSkelError):
+        bone_weights(V, F, H, T, [-1, 0], deform=[False, False])
+    with pytest.raises(CurveSkelError):
+        bone_weights(V, F + len(V), H, T, [-1, 0])
+    idx, w, _ = bone_weights(V, F, H, T, [-1, 0], smooth=0.0)
+    check_weights(idx, w, len(V))
+    Wd = dense(idx, w, 2)
+    assert np.allclose(Wd[V[:, 2] < 1.0, 0], 1.0) and np.allclose(Wd[V[:, 2] > 5.0, 1], 1.0)
