@@ -236,36 +236,35 @@ class CURVESKEL_OT_generate(GenerateSettings, bpy.types.Operator):
         if src is None:
             return {'CANCELLED'}
         self._t0 = time.perf_counter()
+        self._live = self._timer = None
         wm = context.window_manager
         try:
             self._live = LiveRun(context, src, skeleton_params(self),
                                  in_render=self.silhouette_in_render, progress=_progress(wm))
-        except CurveSkelError as exc:
-            self.report({'ERROR'}, f"CurveSkel '{src.name}': {exc}")
-            return {'CANCELLED'}
-        wm.progress_begin(0, 100)
-        self._timer = wm.event_timer_add(0.02, window=context.window)
-        wm.modal_handler_add(self)
-        self._status(context, "first approximation (Esc to stop)")
+            wm.progress_begin(0, 100)
+            self._timer = wm.event_timer_add(0.02, window=context.window)
+            wm.modal_handler_add(self)
+            self._status(context, "first approximation (Esc to stop)")
+        except BaseException as exc:
+            return _modal_failed(self, context, exc, src.name)
         return {'RUNNING_MODAL'}
 
     def modal(self, context, event):
-        if event.type == 'ESC' and event.value == 'PRESS':
-            return self._modal_end(context, stopped=True)
-        if event.type != 'TIMER':
-            return {'PASS_THROUGH'}       # the view can still be orbited and zoomed
+        # Whatever fails (bad input, a bug, Ctrl-C), the timer, the header text, the progress
+        # bar and the live preview go with the run: _modal_failed cleans up and reports.
         try:
+            if event.type == 'ESC' and event.value == 'PRESS':
+                return self._modal_end(context, stopped=True)
+            if event.type != 'TIMER':
+                return {'PASS_THROUGH'}       # the view can still be orbited and zoomed
             if self._live.advance(self.update_every):
                 return self._modal_end(context, stopped=False)
-        except CurveSkelError as exc:
-            self._modal_cleanup(context)
-            self._live.discard()
-            self.report({'ERROR'}, f"CurveSkel '{self._live.source_name}': {exc}")
-            return {'CANCELLED'}
-        st = self._live.state
-        if st is not None:
-            self._status(context, f"iteration {st.iteration}, E = {st.energy:.4g} (Esc to stop)")
-        return {'RUNNING_MODAL'}
+            st = self._live.state
+            if st is not None:
+                self._status(context, f"iteration {st.iteration}, E = {st.energy:.4g} (Esc to stop)")
+            return {'RUNNING_MODAL'}
+        except BaseException as exc:
+            return _modal_failed(self, context, exc, getattr(self._live, "source_name", "?"))
 
     def _modal_end(self, context, *, stopped: bool):
         self._modal_cleanup(context)
@@ -287,10 +286,18 @@ class CURVESKEL_OT_generate(GenerateSettings, bpy.types.Operator):
         return self._finish(context, src, skeleton, self._t0, live=sil, stopped=stopped)
 
     def _modal_cleanup(self, context) -> None:
+        """Remove the timer (once), end the progress bar, clear the header; each step runs even
+        if another fails."""
         wm = context.window_manager
-        wm.event_timer_remove(self._timer)
-        wm.progress_end()
-        self._status(context, None)
+        timer, self._timer = getattr(self, "_timer", None), None
+        try:
+            if timer is not None:
+                wm.event_timer_remove(timer)
+        finally:
+            try:
+                wm.progress_end()
+            finally:
+                self._status(context, None)
 
     def _status(self, context, text) -> None:
         if context.area is not None:
@@ -327,6 +334,29 @@ class CURVESKEL_OT_generate(GenerateSettings, bpy.types.Operator):
             return {'CANCELLED'}
         self.report({'INFO'}, _describe(src.name, skeleton, time.perf_counter() - t0, stopped))
         return {'FINISHED'}
+
+
+def _modal_failed(op, context, exc: BaseException, name: str) -> set:
+    """The interactive run failed: remove its timer, header text, progress bar and live preview
+    (whatever of them exists), report why, and cancel. Input problems (CurveSkelError) are
+    reported as they are; anything else is a bug: its traceback goes to the console."""
+    try:
+        op._modal_cleanup(context)
+    finally:
+        live = getattr(op, "_live", None)
+        if live is not None:
+            try:
+                live.discard()
+            except ReferenceError:        # the preview was already removed
+                pass
+    if isinstance(exc, CurveSkelError):
+        op.report({'ERROR'}, f"CurveSkel '{name}': {exc}")
+    elif isinstance(exc, KeyboardInterrupt):
+        op.report({'WARNING'}, f"CurveSkel '{name}': interrupted")
+    else:
+        traceback.print_exception(exc)
+        op.report({'ERROR'}, f"CurveSkel '{name}': internal error ({type(exc).__name__}: {exc})")
+    return {'CANCELLED'}
 
 
 CLASSES = (CURVESKEL_OT_generate,)

@@ -7,11 +7,18 @@
 Reads .obj .ply .stl .off, runs the curveskel core and prints vertices, components, joints,
 bones, E0 -> E, iterations and the time of every stage. Errors are reported in one line
 (exit status 2) — use --debug for a traceback.
+
+No file is ever lost: every output path is checked before the computation (never the input
+mesh, a writable folder), each output is written to a temporary file beside it, checked
+complete, and renamed over the old one only then; a failed write keeps the old file and exits
+non-zero. Ctrl-C prints "interrupted", removes the temporary files and exits with 130.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import shutil
 import sys
 import time
 from dataclasses import fields
@@ -46,6 +53,9 @@ _HELP = {
     "refine": "rounds of splitting bones that leave the mesh and re-solving; then outside "
               "joints are pulled in and bones split without a solve (0 = off; default %(default)s)",
     "max_joints": "joint budget of the refinement (default %(default)s)",
+    "min_component_area": "drop connected parts with less than this share of the total area "
+                          "(scan debris; their vertices follow the nearest kept part; "
+                          "0 = keep all; default %(default)s)",
 }
 
 
@@ -78,6 +88,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "the scene (mesh, armature, silhouette)")
     b.add_argument("--render", type=Path, metavar="OUT.png",
                    help="render a Cycles CPU preview of the mesh with its silhouette and skeleton")
+    b.add_argument("--blend-backup", action="store_true",
+                   help="keep the .blend being replaced as OUT.blend1 (Blender's backup); "
+                        "by default no backup file is left")
     g = ap.add_argument_group("method parameters")
     defaults = SkeletonParams()
     for f in fields(SkeletonParams):
@@ -110,9 +123,15 @@ def print_summary(path, V, sk, seconds: float, out=sys.stdout) -> None:
     print(f"mesh        {path}: {len(V)} vertices, {info.get('input_faces', '?')} triangles, "
           f"{s['components']} component(s)", file=out)
     repaired = {k: v for k, v in info.items()
-                if k in ("merged_duplicates", "degenerate_faces_dropped", "isolated_vertices") and v}
+                if k in _REPAIRS and v}
     if repaired:
-        print("repaired    " + ", ".join(f"{k.replace('_', ' ')}: {v}" for k, v in repaired.items()), file=out)
+        print("repaired    " + ", ".join(f"{_REPAIRS[k]}: {v}" for k, v in repaired.items()), file=out)
+    if info.get("small_components_dropped"):
+        print(f"dropped     {info['small_components_dropped']} small part(s) under "
+              f"{100 * info['min_component_area']:g} % of the area each "
+              f"({100 * info['small_components_area_share']:.2g} % in all, "
+              f"{info['small_components_vertices']} vertices, mapped to the nearest kept part); "
+              "--min-component-area 0 keeps them", file=out)
     print(f"skeleton    {s['joints']} joints, {s['bones']} bones", file=out)
     print(f"energy      E0 {s['E0']:.6g} -> E {s['E']:.6g} in {s['iterations']} iterations "
           f"(solver {sk.meta.get('params', {}).get('solver', '?')})", file=out)
@@ -125,6 +144,18 @@ def print_summary(path, V, sk, seconds: float, out=sys.stdout) -> None:
                                          for k, v in _flat(q).items()), file=out)
 
 
+#: meta["input"] counts printed on the "repaired" line, with their wording.
+_REPAIRS = {
+    "merged_duplicates": "merged duplicate vertices",
+    "merged_within_tolerance": "of them within the tolerance",
+    "degenerate_faces_dropped": "degenerate faces dropped",
+    "isolated_vertices": "isolated vertices",
+    "flipped_faces": "faces turned outwards",
+    "flat_components_dropped": "flat parts left out",
+    "open_fragments_dropped": "loose triangles/strips left out",
+}
+
+
 def _flat(d, prefix=""):
     out = {}
     for k, v in d.items():
@@ -135,7 +166,160 @@ def _flat(d, prefix=""):
     return out
 
 
+# -- outputs: checked before the run, written to a temporary file, renamed when complete --------
+#: temporary files of this run still on disk (removed on any failure or interrupt)
+_TEMPS: set[Path] = set()
+#: the output options, in the order they are written
+OUTPUT_FLAGS = ("json", "glb", "fbx", "blend", "render")
+_SUFFIX_NEEDED = {"glb": ".glb", "fbx": ".fbx"}
+
+
+def check_outputs(args) -> dict[str, Path]:
+    """The output paths given, each checked before anything runs: not the input mesh, not
+    two options naming one file, not a directory, in a folder that exists or can be created
+    and can be written. Raises CurveSkelError with one clear line."""
+    mesh = Path(args.mesh).resolve()
+    outs: dict[str, Path] = {}
+    for flag in OUTPUT_FLAGS:
+        path = getattr(args, flag, None)
+        if path is None:
+            continue
+        path = Path(path)
+        opt = "--" + flag
+        res = path.resolve()
+        if res == mesh or (path.exists() and mesh.exists() and os.path.samefile(path, mesh)):
+            raise CurveSkelError(f"{opt} {path} is the input mesh: refusing to overwrite it")
+        for other, p in outs.items():
+            if p.resolve() == res:
+                raise CurveSkelError(f"--{other} and {opt} name the same file {path}")
+        need = _SUFFIX_NEEDED.get(flag)
+        if need and path.suffix.lower() != need:
+            raise CurveSkelError(f"{opt} {path}: the file name must end in {need}")
+        if path.is_dir():
+            raise CurveSkelError(f"cannot write {opt} {path}: it is a directory")
+        folder = res.parent
+        while not folder.exists():
+            folder = folder.parent
+        if not folder.is_dir():
+            raise CurveSkelError(f"cannot write {opt} {path}: {folder} is a file, not a folder")
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise CurveSkelError(f"cannot write {opt} {path}: the folder {folder} is not writable")
+        if folder == res.parent:
+            _probe(folder, opt, path)
+        outs[flag] = path
+    return outs
+
+
+def _probe(folder: Path, opt: str, path: Path) -> None:
+    """Create and remove a file in ``folder`` (a read-only file system passes os.access)."""
+    import tempfile
+
+    try:
+        fd, name = tempfile.mkstemp(prefix=".curveskel-probe-", dir=folder)
+    except OSError as exc:
+        raise CurveSkelError(f"cannot write {opt} {path}: cannot create a file in {folder} ({exc.strerror or exc})") from None
+    os.close(fd)
+    os.unlink(name)
+
+
+def temp_path(path: Path) -> Path:
+    """A new temporary file name beside ``path``, with its suffix (exporters go by it); the
+    folder is created if needed. Registered in _TEMPS until committed or removed."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}{path.suffix}")
+    _TEMPS.add(tmp)
+    return tmp
+
+
+def remove_temps() -> None:
+    for tmp in list(_TEMPS):
+        for p in (tmp, Path(str(tmp) + "@")):         # Blender writes "<name>@" then renames
+            try:
+                p.unlink()
+            except OSError:
+                pass
+        _TEMPS.discard(tmp)
+
+
+_PNG_END = b"IEND\xaeB`\x82"
+_FBX_END = bytes.fromhex("f85a8c6adef5d97eece90ce3758f290b")
+_ZSTD_SEEKABLE_END = bytes.fromhex("b1ea928f")
+
+
+def incomplete(path: Path) -> str | None:
+    """Why the file a writer left at ``path`` is not complete (None when it is). Blender's
+    writers ignore a full disk and leave a truncated file: each format's end is checked."""
+    try:
+        size = path.stat().st_size
+    except OSError:
+        return "no file was written"
+    if size == 0:
+        return "the file is empty"
+    kind = path.suffix.lower()
+    with open(path, "rb") as fh:
+        head = fh.read(16)
+        fh.seek(max(0, size - 64))
+        tail = fh.read()
+    if kind == ".blend":
+        if not (tail.endswith(_ZSTD_SEEKABLE_END) or b"ENDB" in tail):
+            return "the .blend file is truncated"
+    elif kind == ".png":
+        if not tail.endswith(_PNG_END):
+            return "the PNG file is truncated"
+    elif kind == ".glb":
+        if head[:4] != b"glTF" or int.from_bytes(head[8:12], "little") != size:
+            return "the .glb file is truncated"
+    elif kind == ".fbx":
+        if head.startswith(b"Kaydara FBX Binary") and not tail.endswith(_FBX_END):
+            return "the .fbx file is truncated"
+    return None
+
+
+def commit(tmp: Path, path: Path, opt: str, *, backup: bool = False) -> None:
+    """Check the temporary file ``tmp`` is complete, flush it to disk and rename it to ``path``
+    (atomic: ``path`` is the old file or the new one, never a part). Otherwise remove it,
+    keep the old file and raise CurveSkelError."""
+    why = incomplete(tmp)
+    try:
+        if why is None:
+            fd = os.open(tmp, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            if backup and path.exists():
+                shutil.copy2(path, path.with_name(path.name + "1"))
+            os.replace(tmp, path)
+            _TEMPS.discard(tmp)
+            return
+    except OSError as exc:
+        why = exc.strerror or str(exc)
+    remove_temps()
+    kept = "the previous file is kept" if path.exists() else "nothing was written"
+    raise CurveSkelError(f"could not write {opt} {path}: {why} (disk full?); {kept}")
+
+
+def write_json(sk, path: Path) -> None:
+    """The skeleton as JSON, written whole or not at all."""
+    import numpy as np
+
+    for name in ("joints", "t"):
+        if not np.all(np.isfinite(np.asarray(getattr(sk, name), dtype=float))):
+            raise CurveSkelError(f"the result has non-finite {name} (a bug; please report it): "
+                                 "no JSON written")
+    tmp = temp_path(path)
+    try:
+        sk.save(tmp)
+    except OSError as exc:
+        remove_temps()
+        kept = "the previous file is kept" if path.exists() else "nothing was written"
+        raise CurveSkelError(f"could not write --json {path}: {exc.strerror or exc}; {kept}") from None
+    commit(tmp, path, "--json")
+
+
 def run(args) -> int:
+    check_outputs(args)
     params = params_from_args(args)
     t0 = time.perf_counter()
     V, F = read_mesh(args.mesh)
@@ -147,9 +331,11 @@ def run(args) -> int:
     seconds = time.perf_counter() - t0
     print_summary(args.mesh, V, sk, seconds)
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        sk.save(args.json)
-        print(f"wrote       {args.json}")
+        write_json(sk, args.json)
+        print(f"wrote       {args.json}", flush=True)
+    if args.bind or args.glb or args.fbx or args.blend or args.render:
+        print("blender     loading Blender (bpy) ...", flush=True)
+        _import_bpy()
     if args.bind or args.glb or args.fbx:
         rig_outputs(args, V, sk)
     if args.blend or args.render:
@@ -157,19 +343,42 @@ def run(args) -> int:
     return 0
 
 
+def _import_bpy() -> None:
+    """Import bpy with Ctrl-C handled by :func:`_exit_on_sigint` from here on.
+
+    A KeyboardInterrupt raised inside bpy's start-up, or inside an operator, is caught and
+    printed by Blender, which then crashes or carries on; so from the Blender stage on Ctrl-C
+    removes the temporary files and leaves at once instead (set again after the import, in
+    case Blender installed its own handler)."""
+    import signal
+
+    signal.signal(signal.SIGINT, _exit_on_sigint)
+    import bpy  # noqa: F401
+
+    signal.signal(signal.SIGINT, _exit_on_sigint)
+
+
+def _exit_on_sigint(signum, frame) -> None:
+    _interrupted()
+
+
 def blender_outputs(args, params) -> None:
     """--blend/--render: the same operator the Blender UI runs (curveskel_addon.headless)."""
     from curveskel_addon import headless
 
-    out = headless.cli_outputs(args.mesh, params.to_dict(), blend=args.blend, render=args.render,
+    blend = temp_path(args.blend) if args.blend else None
+    render = temp_path(args.render) if args.render else None
+    out = headless.cli_outputs(args.mesh, params.to_dict(), blend=blend, render=render,
                                bind=args.bind)
     arm = out["armature"]
     print(f"blender     {arm.name}: {arm['curveskel_n_joints']} joints, {arm['curveskel_n_bones']} bones, "
           f"operator {out['operator_seconds']:.2f} s", flush=True)
-    if "blend" in out:
-        print(f"wrote       {out['blend']}")
-    if "render" in out:
-        print(f"wrote       {out['render']} (render {out['render_seconds']:.1f} s)")
+    if blend is not None:
+        commit(blend, args.blend, "--blend", backup=args.blend_backup)
+        print(f"wrote       {args.blend}", flush=True)
+    if render is not None:
+        commit(render, args.render, "--render")
+        print(f"wrote       {args.render} (render {out['render_seconds']:.1f} s)", flush=True)
 
 
 def rig_outputs(args, V, sk) -> None:
@@ -195,10 +404,12 @@ def rig_outputs(args, V, sk) -> None:
     found = build_result(bpy.context, ob, sk, options)
     arm = found["armature"]
     print(f"rig         {len(arm.data.bones)} bones, {len(ob.vertex_groups)} vertex groups", flush=True)
-    for path in (args.glb, args.fbx):
+    for flag, path in (("glb", args.glb), ("fbx", args.fbx)):
         if path is not None:
-            out = export_rig(bpy.context, ob, arm, path)
-            print(f"wrote       {out['path']} ({out['format']}, {out['seconds']:.2f} s)")
+            tmp = temp_path(path)
+            out = export_rig(bpy.context, ob, arm, tmp)
+            commit(tmp, path, "--" + flag)
+            print(f"wrote       {path} ({out['format']}, {out['seconds']:.2f} s)", flush=True)
 
 
 def main(argv=None) -> int:
@@ -207,16 +418,34 @@ def main(argv=None) -> int:
     try:
         return run(args)
     except CurveSkelError as exc:
+        remove_temps()
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
+        return _interrupted()
     except Exception as exc:  # never a raw traceback for users; --debug shows it
+        remove_temps()
         if args.debug:
             raise
         print(f"error: unexpected {type(exc).__name__}: {exc} (run with --debug for details)", file=sys.stderr)
         return 1
+
+
+def _interrupted() -> int:
+    """Ctrl-C: remove the temporary files, say so, exit 130. Once bpy is (even partly) loaded
+    the interpreter's normal shutdown can crash inside Blender: leave at once instead."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)      # a second Ctrl-C must not cut the clean-up
+    remove_temps()
+    print("interrupted", file=sys.stderr)
+    if "bpy" in sys.modules or "_bpy" in sys.modules:
+        try:
+            sys.stdout.flush()
+            sys.stderr.flush()
+        finally:
+            os._exit(130)
+    return 130
 
 
 if __name__ == "__main__":
