@@ -152,7 +152,7 @@ def write_weights(mesh_obj, group_names, index, weight) -> None:
 
 
 def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, smooth: float = 0.5,
-              method: str = "SURFACE") -> dict:
+              junction_blend: float = 0.0, method: str = "SURFACE") -> dict:
     """Skin ``mesh_obj`` to the armature ``arm_obj`` as it is now.
 
     Parameters
@@ -169,6 +169,9 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, smooth: 
     smooth : float >= 0
         Diffusion of the weights along the surface, as a fraction of the median vertex-to-bone
         distance (at most 30 steps); 0 keeps the blended weights (SURFACE only).
+    junction_blend : float in [0, 0.5]
+        Blend width where a chain leaves a junction, as a fraction of its first bone's length;
+        0 keeps chain boundaries rigid (posing a limb moves no vertex of another limb).
     method : {"SURFACE", "HEAT"}
         Surface-respecting weights from the bones (default), or Blender's heat weights (slow on
         large meshes). "MAPPING" is accepted as the old name of "SURFACE".
@@ -232,7 +235,7 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, smooth: 
         P = _vertices(me) @ M[:3, :3].T + M[:3, 3]
         index, weight, info = bone_weights(P, None, bones["heads"], bones["tails"], bones["parent"],
                                            bones["deform"], blend=blend, smooth=smooth,
-                                           edges=_edges(me))
+                                           junction_blend=junction_blend, edges=_edges(me))
         fig.update(info)
         fig["mapping"] = "bones"
         # one group per deforming bone, named as the bone, in armature order
@@ -249,6 +252,7 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, smooth: 
         fig["unweighted"] = int(np.sum(weight.sum(axis=1) <= 0))
         fig["blend"] = float(blend)
         fig["smooth"] = float(smooth)
+        fig["junction_blend"] = float(junction_blend)
         mod = mesh_obj.modifiers.new(MODIFIER_NAME, 'ARMATURE')
     else:
         groups, mod = _heat_weights(mesh_obj, arm_obj, deform_names, warnings)

@@ -391,18 +391,23 @@ def surface_labels(V, edges, heads, tails, deform=None, *, k: int = 8):
 
 
 def bone_weights(V, F, heads, tails, parent, deform=None, *, blend: float = 0.25,
-                 smooth: float = 0.5, max_influences: int = MAX_INFLUENCES, edges=None):
+                 smooth: float = 0.5, junction_blend: float = 0.0, max_influences: int = MAX_INFLUENCES,
+                 edges=None):
     """Skin weights for the bones as they are now, respecting the surface.
 
     1. :func:`surface_labels`: each vertex belongs to one bone (closest bone, restricted to the
        bone's connected patch of the surface).
     2. Near the ends of its bone a vertex blends with the bone's partner there
-       (:func:`bone_partners`): 50/50 at a chain joint, a one-sided hand-over into the hub at a
-       junction, with a smoothstep over ``blend`` of the bone's length (as :func:`skin_weights`).
+       (:func:`bone_partners`): 50/50 at a chain joint with a smoothstep over ``blend`` of the
+       bone's length (as :func:`skin_weights`). Where a chain leaves a junction (or the root)
+       the hand-over into the hub is one-sided over ``junction_blend`` of the child's length;
+       0 (the default) keeps chain boundaries rigid, so posing a chain never moves a vertex
+       that belongs to another chain.
     3. The weights are diffused along the surface over ``smooth`` times the median
        vertex-to-bone distance (:func:`smooth_weights`, at most 30 steps), then each vertex keeps
-       only its main bone, that bone's parent and its children: weights never spread to a
-       sibling limb or across a gap.
+       only its main bone and either that bone's parent or its children (the heavier side), and
+       only across joints that blend: weights never spread to a sibling limb, across a gap, or
+       over a rigid chain boundary.
 
     Parameters
     ----------
@@ -415,6 +420,7 @@ def bone_weights(V, F, heads, tails, parent, deform=None, *, blend: float = 0.25
     deform : (R,) bool, optional
     blend : float in [0, 0.5]
     smooth : float >= 0
+    junction_blend : float in [0, 0.5]
     max_influences : int
     edges : (e, 2) int, optional
         The mesh's edges, used instead of the triangles' (any polygons).
@@ -431,6 +437,8 @@ def bone_weights(V, F, heads, tails, parent, deform=None, *, blend: float = 0.25
     """
     if not 0.0 <= blend <= 0.5:
         raise CurveSkelError(f"blend must be in [0, 0.5] of a bone's length, got {blend}")
+    if not 0.0 <= junction_blend <= 0.5:
+        raise CurveSkelError(f"junction_blend must be in [0, 0.5] of a bone's length, got {junction_blend}")
     if not smooth >= 0:
         raise CurveSkelError(f"smooth must be >= 0, got {smooth}")
     P = np.asarray(V, dtype=np.float64).reshape(-1, 3)
@@ -458,11 +466,9 @@ def bone_weights(V, F, heads, tails, parent, deform=None, *, blend: float = 0.25
     u = np.where(near_head, s, 1.0 - s)
     mode = np.where(near_head, hm[label], tm[label])
     partner = np.where(near_head, hp[label], tp[label])
-    if blend > 0:
-        f = smoothstep(u / blend)
-        share = np.where(mode == BLEND_SYMMETRIC, 0.5 * (1.0 - f), np.where(mode == BLEND_HUB, 1.0 - f, 0.0))
-    else:
-        share = np.zeros(n)
+    f = smoothstep(u / blend) if blend > 0 else np.ones(n)
+    fj = smoothstep(u / junction_blend) if junction_blend > 0 else np.ones(n)
+    share = np.where(mode == BLEND_SYMMETRIC, 0.5 * (1.0 - f), np.where(mode == BLEND_HUB, 1.0 - fj, 0.0))
     share = np.where(partner >= 0, share, 0.0)
     index = np.full((n, 2), -1, np.int64)
     weight = np.zeros((n, 2))
@@ -478,10 +484,24 @@ def bone_weights(V, F, heads, tails, parent, deform=None, *, blend: float = 0.25
     main = index[:, :1]
     ok = index >= 0
     idx = np.maximum(index, 0)
-    pm = np.where(attached[main], par[main], -2)
-    pi = np.where(attached[idx], par[idx], -2)
-    family = ok & ((idx == main) | (idx == pm) | (pi == main))
+    # joints that blend: a bone's head on its parent (a chain joint; any attached parent when
+    # junctions blend too)
+    blends = (hm == BLEND_SYMMETRIC) | ((hm == BLEND_HUB) & (junction_blend > 0))
+    pm = np.where(blends[main], par[main], -2)
+    pi = np.where(blends[idx], par[idx], -2)
+    up = ok & (idx == pm) & (idx != main)
+    down = ok & (pi == main) & (idx != main)
+    family = ok & ((idx == main) | up | down)
     weight = np.where(family, weight, 0.0)
+    # the parent and a child of the main bone are not neighbours: keep the heavier side only
+    # ... and one child only (siblings never share a vertex)
+    wd = np.where(down, weight, -1.0)
+    heaviest = np.argmax(wd, axis=1)[:, None]
+    down &= np.arange(down.shape[1])[None, :] == heaviest
+    weight = np.where(family & ~(idx == main) & ~up & ~down, 0.0, weight)
+    w_up = np.where(up, weight, 0.0).sum(axis=1, keepdims=True)
+    w_down = np.where(down, weight, 0.0).sum(axis=1, keepdims=True)
+    weight = np.where((up & (w_up < w_down)) | (down & (w_down <= w_up) & (w_up > 0)), 0.0, weight)
     index = np.where(family, index, -1)
     total = weight.sum(axis=1, keepdims=True)
     weight = np.divide(weight, total, out=np.zeros_like(weight), where=total > 0)

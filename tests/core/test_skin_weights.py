@@ -246,3 +246,38 @@ def test_bone_weights_rejects_bad_input():
     check_weights(idx, w, len(V))
     Wd = dense(idx, w, 2)
     assert np.allclose(Wd[V[:, 2] < 1.0, 0], 1.0) and np.allclose(Wd[V[:, 2] > 5.0, 1], 1.0)
+
+
+def star_bones():
+    """A root bone at the centre of meshes.star() pointing up, and two bones along each arm
+    leaving its head (a junction: the chains hand over into the root bone)."""
+    H, T, par = [(0, 0, 0.0)], [(0, 0, 0.5)], [-1]
+    for a in range(4):
+        u = np.array([np.cos(a * np.pi / 2), np.sin(a * np.pi / 2), 0.0])
+        H += [tuple(0 * u), tuple(2 * u)]
+        T += [tuple(2 * u), tuple(4 * u)]
+        par += [0, len(H) - 2]
+    return np.array(H, float), np.array(T, float), np.array(par)
+
+
+@pytest.mark.parametrize("junction_blend", [0.0, 0.25])
+def test_chain_boundaries_rigid_by_default(junction_blend):
+    V, F = meshes.star()
+    H, T, par = star_bones()
+    idx, w, _ = bone_weights(V, F, H, T, par, junction_blend=junction_blend)
+    check_weights(idx, w, len(V))
+    Wd = dense(idx, w, len(H))
+    chain = np.array([0, 1, 1, 2, 2, 3, 3, 4, 4])          # root, then one chain per arm
+    Wc = np.zeros((len(V), 5))
+    for r in range(len(H)):
+        Wc[:, chain[r]] += Wd[:, r]
+    arms = (Wc[:, 1:] > 1e-9).sum(axis=1)
+    assert arms.max() == 1                                   # never two arms
+    mixed = (Wc[:, 0] > 0.1) & (Wc[:, 1:].max(axis=1) > 0.1)
+    if junction_blend == 0:
+        assert not ((Wc > 1e-9).sum(axis=1) > 1).any()       # one chain per vertex
+    else:
+        assert mixed.sum() > 10                              # the hand-over at the centre
+    # inside a chain the joint at the arm's middle still blends 50/50
+    mid = (np.abs(V[:, 0] - 2.0) < 0.07) & (np.abs(V[:, 1]) < 0.6)
+    assert mid.any() and np.allclose(Wd[mid][:, 1], 0.5, atol=0.1)
