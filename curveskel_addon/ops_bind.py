@@ -85,6 +85,11 @@ class CURVESKEL_OT_bind(bpy.types.Operator):
         description="Diffuse the weights along the surface over this fraction of the typical "
         "limb radius (a bone's weights never reach a sibling limb; 0: no diffusion)")
 
+    junction_blend: FloatProperty(
+        name="Junction Blend", default=0.0, min=0.0, max=0.5, subtype='FACTOR',
+        description="Blend where a limb leaves a junction, as a fraction of its first bone's length "
+        "(0: rigid, posing a limb moves no vertex of another limb; more: softer creases)")
+
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
@@ -92,6 +97,7 @@ class CURVESKEL_OT_bind(bpy.types.Operator):
         col = layout.column()
         col.active = self.method == "SURFACE"
         col.prop(self, "blend")
+        col.prop(self, "junction_blend")
         col.prop(self, "smooth")
 
     def execute(self, context):
@@ -102,7 +108,8 @@ class CURVESKEL_OT_bind(bpy.types.Operator):
         if context.mode != 'OBJECT':
             bpy.ops.object.mode_set(mode='OBJECT')      # edit-mode bone changes are taken
         try:
-            fig = bind_mesh(mesh, arm, None, blend=self.blend, smooth=self.smooth, method=self.method)
+            fig = bind_mesh(mesh, arm, None, blend=self.blend, smooth=self.smooth,
+                            junction_blend=self.junction_blend, method=self.method)
         except CurveSkelError as exc:
             self.report({'ERROR'}, f"CurveSkel bind '{mesh.name}': {exc}")
             return {'CANCELLED'}

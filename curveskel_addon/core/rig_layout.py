@@ -670,12 +670,12 @@ def named_rig(lay: RigLayout, plane: MirrorPlane | None = None, *, pair_tol: flo
             if ma * mb >= 0:
                 return None
             pa, pb = parent_chain[a], parent_chain[b]
-            # a pair's parents are themselves a pair, the same chain, or both near the plane
-            if not (pa == pb or partner.get(pa) == pb or (near_plane[pa] and near_plane[pb]
-                                                          and pa not in partner and pb not in partner)):
-                return None
+            # a pair's parents are themselves a pair, the same chain, or both near the plane;
+            # otherwise (a skeleton whose branching differs left and right) only a close match
+            kin = pa == pb or partner.get(pa) == pb or (near_plane[pa] and near_plane[pb]
+                                                        and pa not in partner and pb not in partner)
             cost = _chain_distance(pts[a], plane.reflect(pts[b]))
-            limit = pair_tol * max(length[a], length[b]) + 0.02 * diag
+            limit = (pair_tol * max(length[a], length[b]) + 0.02 * diag) * (1.0 if kin else 0.75)
             # the chains must lie mostly off the plane (else both are central)
             if cost < limit and min(abs(ma), abs(mb)) > 0.5 * cost:
                 return cost

@@ -242,8 +242,8 @@ def bone_partners(heads, tails, parent, deform=None, *, tol=None):
     """Blend partners of bones as they are now (any armature, edited or not).
 
     A child whose head sits on its parent's tail continues the parent: when it is the parent's
-    only such child the two blend symmetrically at the joint; when several children start there
-    (a junction) each hands over to the parent (the hub: weight 1 at the joint). Children whose
+    only (deforming) child the two blend symmetrically at the joint; otherwise (a junction) it
+    hands over to the parent (the hub: weight 1 at the joint). Children whose
     head sits on the parent's head (under a root bone) hand over to the parent the same way.
     Non-deforming bones take no part.
 
@@ -277,6 +277,7 @@ def bone_partners(heads, tails, parent, deform=None, *, tol=None):
     tail_partner = np.full(R, -1, np.int64)
     attached = np.zeros(R, bool)
     at_tail: dict[int, list[int]] = {}
+    n_kids = np.bincount(par[(par >= 0) & deform], minlength=R) if R else np.zeros(0, np.int64)
     for r in range(R):
         p = int(par[r])
         if p < 0 or not deform[r] or not deform[p]:
@@ -288,7 +289,7 @@ def bone_partners(heads, tails, parent, deform=None, *, tol=None):
             head_mode[r], head_partner[r] = BLEND_HUB, p
             attached[r] = True
     for p, kids in at_tail.items():
-        if len(kids) == 1:
+        if len(kids) == 1 and n_kids[p] == 1:          # a chain joint: the parent's only child
             c = kids[0]
             tail_mode[p], tail_partner[p] = BLEND_SYMMETRIC, c
             head_mode[c], head_partner[c] = BLEND_SYMMETRIC, p
@@ -459,7 +460,9 @@ def bone_weights(V, F, heads, tails, parent, deform=None, *, blend: float = 0.25
             raise CurveSkelError("edge vertex index out of range")
     else:
         E = np.concatenate([Fa[:, [0, 1]], Fa[:, [1, 2]], Fa[:, [2, 0]]]) if len(Fa) else np.zeros((0, 2), np.int64)
-        E = np.unique(np.sort(E, axis=1), axis=0)
+        E = np.sort(E, axis=1)
+        key = np.unique(E[:, 0] * max(n, 1) + E[:, 1])             # 1-D unique: 10x faster
+        E = np.stack([key // max(n, 1), key % max(n, 1)], 1)
     label, s, dist, closest = surface_labels(P, E, H, T, deform)
     hm, tm, hp, tp, attached = bone_partners(H, T, par, deform)
     near_head = s < 0.5
