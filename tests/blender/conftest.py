@@ -86,7 +86,9 @@ def _mesh_digest(ob) -> dict:
     out["name"] = (ob.name, me.name, me.users)
     out["modifiers"] = [m.name for m in ob.modifiers]
     out["vertex_groups"] = [g.name for g in ob.vertex_groups]
-    out["keys"] = sorted(ob.keys())
+    # custom properties only: Blender 4.2 also lists the storage of registered (bpy.props)
+    # properties such as the result pointers in keys(), 5.0+ does not
+    out["keys"] = sorted(k for k in ob.keys() if k not in ob.bl_rna.properties)
     return out
 
 
