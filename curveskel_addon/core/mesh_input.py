@@ -12,6 +12,8 @@ the vertices the faces use), never absolute, so scaling or moving a mesh cleans 
   (zero-area slivers) are dropped;
 * face winding is made consistent across every manifold edge and each connected part is turned
   to face outwards (positive signed volume), so inverted normals do not matter;
+* holes are capped (a fan from each loop of open edges to its mean), so every part has an
+  inside: an open bowl becomes a half-ball;
 * parts with less than ``min_component_area`` of the total area (scan debris) are dropped;
 * a mesh flat to within the tolerance (no volume at all) is refused.
 """
@@ -168,8 +170,8 @@ def _open_edge_vertices(F: np.ndarray, n: int) -> np.ndarray:
 
 def _merge_close(V: np.ndarray, inverse: np.ndarray, candidates: np.ndarray, tol: float):
     """Merge the ``candidates`` (indices into V) lying within ``tol`` of each other (chains
-    included); each cluster takes its mean position and the place of its first member.
-    Returns (V, inverse, merged count)."""
+    included); each cluster takes the position and the place of its first member (so vertices
+    of a clean part never move). Returns (V, inverse, merged count)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
@@ -190,10 +192,7 @@ def _merge_close(V: np.ndarray, inverse: np.ndarray, candidates: np.ndarray, tol
     rank = np.empty(k, np.int64)
     rank[order] = np.arange(k)
     new = rank[lab]
-    cnt = np.bincount(new, minlength=k).astype(np.float64)
-    Vn = np.stack([np.bincount(new, weights=V[:, j], minlength=k) for j in range(3)], axis=1)
-    Vn /= cnt[:, None]
-    return Vn, new[inverse], n - k
+    return V[first[order]], new[inverse], n - k
 
 
 def _drop_repeated_index(F: np.ndarray) -> tuple[np.ndarray, int]:
@@ -269,6 +268,41 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return c
 
 
+def _cap_holes(V: np.ndarray, F: np.ndarray, labels: np.ndarray):
+    """Close every hole: each loop of open edges gets a fan of triangles to a new vertex at the
+    loop's mean, wound to match its neighbours (an open edge a->b gets the cap b->a->centre).
+
+    The method needs an inside (contours, inside tests); a capped bowl is a half-ball, an open
+    tube a closed one. Returns (V, F, labels, holes, cap area)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = len(V)
+    a = F.ravel()
+    b = F[:, [1, 2, 0]].ravel()
+    key = np.minimum(a, b) * np.int64(n) + np.maximum(a, b)
+    _, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
+    one = cnt[inv] == 1
+    ea, eb = a[one], b[one]
+    if len(ea) == 0:
+        return V, F, labels, 0, 0.0
+    _, lab = connected_components(coo_matrix((np.ones(len(ea), np.int8), (ea, eb)), shape=(n, n)),
+                                  directed=False)
+    bv = np.unique(np.concatenate([ea, eb]))
+    loops, loop_of = np.unique(lab[bv], return_inverse=True)
+    h = len(loops)
+    cnt_l = np.bincount(loop_of, minlength=h).astype(np.float64)
+    centre = np.stack([np.bincount(loop_of, weights=V[bv, j], minlength=h) for j in range(3)],
+                      axis=1) / cnt_l[:, None]
+    first = np.full(h, n, np.int64)
+    np.minimum.at(first, loop_of, bv)
+    caps = np.stack([eb, ea, n + np.searchsorted(loops, lab[ea])], axis=1)
+    V2 = np.vstack([V, centre])
+    T = V2[caps]
+    area = float(np.linalg.norm(_cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1).sum() / 2)
+    return V2, np.vstack([F, caps]), np.concatenate([labels, labels[first]]), h, area
+
+
 def _boundary_vertices(A) -> np.ndarray:
     """Vertices on edges used by one face, from the edge matrix of :func:`_edge_census`."""
     c = (A.data & 0xFFFFFFFF) + (A.data >> 32)
@@ -321,7 +355,8 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
     (merged; on open edges within ``MERGE_TOLERANCE`` of the size), faces with a repeated vertex
     or repeated faces (dropped), zero-area faces (dropped), inconsistent or inward winding
     (turned over: ``flipped_faces``), connected parts with less than ``min_component_area`` of
-    the total area (dropped; 0 keeps all; the largest part is always kept), isolated vertices.
+    the total area (dropped; 0 keeps all; the largest part is always kept), holes (capped with a
+    fan to a new working vertex: ``holes_capped``), isolated vertices.
     Vertices left out of the working mesh have ``work_index`` -1 (mapped to the skeleton
     afterwards by the nearest working vertex).
     """
@@ -479,7 +514,9 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
     unusable = flat | fragment
     if unusable.all():
         if flat.all():
-            where = "every vertex lies in one plane" if k == 1 else f"each of its {k} parts lies in a plane"
+            where = ("every vertex lies in one plane" if k == 1 else
+                     f"each of its {k} parts lies in a plane; a triangle soup whose corners are "
+                     "not shared?")
             raise CurveSkelError(
                 f"the mesh is flat ({where}): a curve-skeleton needs a shape with volume; give "
                 "the surface a thickness (e.g. a Solidify modifier) first")
@@ -514,6 +551,11 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
     small_dropped = int(small.sum())
     small_share = float(carea[small].sum() / carea.sum()) if small_dropped else 0.0
 
+    # Holes are closed (the working mesh only: every input vertex keeps its place).
+    holes, cap_area = 0, 0.0
+    if boundary or degenerate_area or merged_close or repeated_faces:
+        Vw, Fw, labels, holes, cap_area = _cap_holes(Vw, Fw, labels)
+
     info = {
         "input_vertices": n,
         "input_faces": int(len(F)),
@@ -528,6 +570,9 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
         info["merged_within_tolerance"] = int(merged_close)
     if non_orientable:
         info["non_orientable_parts"] = non_orientable
+    if holes:
+        info["holes_capped"] = int(holes)
+        info["cap_area_share"] = cap_area / max(float(carea[~drop].sum()), 1e-300)
     if min_component_area > 0:
         info["min_component_area"] = min_component_area
     if flat.any():
