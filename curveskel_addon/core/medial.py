@@ -108,8 +108,11 @@ class MedialBalls:
         self._build()
         return self._tree
 
-    def at(self, q_index: np.ndarray):
+    def at(self, q_index: np.ndarray, rho0=None):
         """Medial ball touching the surface at each sample ``self.pts[q_index]``.
+
+        ``rho0`` (k,) optional: start radii (an upper bound saves shrinks; default half the
+        size of the mesh).
 
         Returns
         -------
@@ -119,6 +122,8 @@ class MedialBalls:
         q_index = np.asarray(q_index, dtype=np.int64)
         q, n = self.pts[q_index], self.nrm[q_index]
         rho = np.full(len(q), 0.5 * self.size)
+        if rho0 is not None:
+            rho = np.minimum(rho, np.maximum(np.asarray(rho0, np.float64), 1e-12 * self.size))
         live = np.ones(len(q), dtype=bool)
         for _ in range(self.max_iterations):
             ids = np.flatnonzero(live)

@@ -23,55 +23,57 @@ SOLVERS = ("paper", "lm")
 class SkeletonParams:
     """Parameters of :func:`curveskel_addon.core.skeletonize`.
 
+    The first four are the artist's settings (the Blender panel shows only these; the rest sit
+    under *Advanced* and in the command line's "advanced" group).
+
     Attributes
     ----------
     spacing : float
-        Contour spacing as a fraction of each component's bounding-box diagonal. Smaller gives
-        more joints. Refined automatically where a handle would otherwise be lost.
+        *Detail.* Distance between the cross-sections (Reeb contours) as a fraction of each
+        component's bounding-box diagonal: smaller finds smaller parts and gives more joints.
+        Refined automatically where a handle would otherwise be lost.
+    smoothness : float
+        *Smoothness* of the centred curve: weight of a chain joint's distance from the midpoint
+        of its neighbours against the medial points it explains (scale-free; 0 follows the
+        medial points exactly, 10 is nearly straight between branchings). See :mod:`.centreline`.
+    prune : float
+        *Branch pruning.* A leaf branch reaching out of its junction's ball by less than this
+        many of its own radii is a bump of the junction and is removed (0 keeps all).
+    max_joints : int
+        *Max joints.* Chains are simplified further until the skeleton has at most this many
+        joints (0: no limit).
     solver : str
-        One of :data:`SOLVERS`.
+        One of :data:`SOLVERS` ("lm": Levenberg-Marquardt, default; "paper": gradient descent
+        with the exact line search, as published).
     max_iterations : int
-        Upper bound on optimisation iterations.
+        Upper bound on optimisation iterations of the final fit.
     tolerance : float
         Stop when one iteration lowers E by less than ``tolerance * E0`` (eq. 30-31: 1e-3).
     seed : int
-        Seed of the random first vertex of the pole search; results are reproducible.
+        Seed of the random first vertex of the pole search and of the fit subsets.
     area_weighted : bool
         Weight each vertex by its Voronoi area (surface integral of eq. 8 instead of a vertex sum).
     refit_mapping : bool
-        Re-fit sigma (each vertex's bone and t) between solver steps.
-    prune : float
-        Remove a leaf branch whose removal raises E by less than ``prune`` times what the branch
-        explains (0 disables).
-    simplify : float
-        Merge a joint of degree 2 when E barely changes (relative threshold, 0 disables).
-    candidates : int
-        Number of first approximations (poles / spacings) tried; the one of lowest E is kept.
-    smoothness : float
-        Weight of a Laplacian term keeping chain joints between their neighbours ("lm" only;
-        0 disables). Relative to E; see :mod:`.solvers.lm`.
+        Re-fit sigma (each vertex's bone and t) to the closest bone point between solver steps.
+        Off by default: a free re-fit turns E into a distance to the silhouette, which rewards
+        bones that fill the volume (issue 10); sigma stays on the bones of its Reeb region.
+    centre : bool
+        Centre the Reeb graph's curve on the medial points and simplify it (the rig-ready
+        formulation, :mod:`.centreline`, :mod:`.edit`); off in :meth:`paper`.
+    centring : float
+        Weight holding each joint to its centred position during the final fit of E (relative
+        to E: 1 means a displacement of one median radius at every joint costs E0; 0 lets E
+        move the joints freely). See :mod:`.solvers.lm`.
     containment : float
         Weight of a term keeping each joint, and points along each bone, inside the mesh with
-        their balls inside the surface ("lm" only; 0 disables). Stops joints running away while E still falls. Relative to E
-        (1: a violation of one median radius at every joint costs E0); default 1.0, measured
-        better than 0 on all six reference meshes (bone points inside the mesh and
-        reconstruction distance); see :mod:`.solvers.lm`.
-    refine : int
-        Rounds of splitting the bones that leave the mesh (tested exactly at points along
-        every bone) and the 40 % of bones holding most of E, and re-solving, each only while
-        more than 2 % of the tested points are outside; then, without re-solving, joints still
-        outside are pulled in, bones split again at medial balls of the surface and joints
-        relocated (0 disables all of it; skipped above 500k faces, where its exact inside
-        tests would cost more than the fit, and ``meta["refine"]["skipped"]`` says so).
-        Default 1; each further round lowers E and recon again but costs a solve (0.3-1 s
-        on meshes of 5k vertices). Folds (chains doubling back along another part,
-        :func:`.postprocess.unfold_chains`) are merged away first. See :mod:`.refine`.
-    max_joints : int
-        Joint budget of the refinement: no bone is split beyond this many joints.
+        their balls inside the surface ("lm" only; 0 disables). Relative to E.
+    simplify : float
+        Chain joints are merged while the chain stays within this fraction of the local radius
+        of the straight bone replacing them (Douglas-Peucker; 0 disables).
     max_fit_points : int
-        Above this many vertices the solver fits an area-weighted random subset of this size
-        (a quadrature of the same surface integral) and maps every vertex at the end.
-        0 = always fit every vertex. Needs area_weighted.
+        Above this many vertices the final fit uses an area-weighted random subset of this
+        size (a quadrature of the same surface integral) and maps every vertex at the end.
+        0 = always fit every vertex.
     min_component_area : float
         Connected parts of the mesh with less than this share of the total surface area are
         dropped before the fit (scan debris, specks); their vertices are mapped to the nearest
@@ -79,34 +81,37 @@ class SkeletonParams:
         ``meta["input"]`` (``small_components_dropped`` ...).
     """
 
-    spacing: float = 0.04
+    spacing: float = 0.02
+    smoothness: float = 0.5
+    prune: float = 1.0
+    max_joints: int = 150
     solver: str = "lm"
-    max_iterations: int = 100
+    max_iterations: int = 30
     tolerance: float = 1e-3
     seed: int = 0
     area_weighted: bool = True
-    refit_mapping: bool = True
-    prune: float = 0.02
-    simplify: float = 0.01
-    candidates: int = 3
-    smoothness: float = 0.0
+    refit_mapping: bool = False
+    centre: bool = True
+    centring: float = 3.0
     containment: float = 1.0
+    simplify: float = 0.25
     max_fit_points: int = 60000
-    refine: int = 1
-    max_joints: int = 300
     min_component_area: float = 0.01
 
     def __post_init__(self):
-        check_params(self)
+        check_params(self)        # one place for every rule: API, command line and Blender
 
     @classmethod
     def paper(cls, **overrides) -> "SkeletonParams":
         """The method exactly as the paper describes it (vertex sum, fixed sigma, gradient descent)."""
-        base = dict(solver="paper", area_weighted=False, refit_mapping=False, prune=0.0,
-                    simplify=0.0, candidates=1, max_iterations=1000, smoothness=0.0,
-                    containment=0.0, max_fit_points=0, refine=0)
+        base = dict(spacing=0.04, solver="paper", area_weighted=False, refit_mapping=False,
+                    prune=0.0, simplify=0.0, centre=False, centring=0.0, max_iterations=1000,
+                    smoothness=0.0, containment=0.0, max_fit_points=0, max_joints=0)
         base.update(overrides)
         return cls.from_dict(base)
+
+    #: The artist's settings, in the order the UI shows them.
+    ARTIST = ("spacing", "smoothness", "prune", "max_joints")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -134,14 +139,14 @@ RULES: dict[str, tuple] = {
     "seed": ("int", 0, None),
     "area_weighted": ("bool", None, None),
     "refit_mapping": ("bool", None, None),
-    "prune": ("float", 0.0, 1.0),
+    "prune": ("float", 0.0, None),
     "simplify": ("float", 0.0, None),
-    "candidates": ("int", 1, None),
     "smoothness": ("float", 0.0, None),
     "containment": ("float", 0.0, None),
     "max_fit_points": ("int", 0, None),
-    "refine": ("int", 0, None),
-    "max_joints": ("int", 2, None),
+    "max_joints": ("int", 0, None),
+    "centre": ("bool", None, None),
+    "centring": ("float", 0.0, None),
     "min_component_area": ("float", 0.0, (1.0,)),
 }
 

@@ -1,7 +1,20 @@
-"""skeletonize(): the stages of the method in order, timed, one component at a time.
+"""skeletonize(): the stages of the method in order over one :class:`.state.PipelineState`.
 
-mesh arrays -> clean_mesh -> components -> first_approximation (per component)
-            -> one joint FitProblem -> solver steps -> Skeleton in input vertex order
+    mesh arrays -> clean_mesh -> components
+      -> initialise  first approximation per component (Reeb graph of the geodesic distance,
+                     contours' enclosing balls; :mod:`.reeb`)
+      -> centre      the curve moved onto the medial points, smooth along chains (:mod:`.centreline`)
+      -> edit        bumps removed, straight chain joints and zig-zags merged, joint budget (:mod:`.edit`)
+      -> fit         E minimised (LM or the paper's gradient descent) with every joint held to its
+                     centred place and kept inside; sigma stays on the bones of its Reeb region
+      -> Skeleton    every input vertex mapped; the reported E is that of the returned skeleton
+
+Why this order (issue 10): the *shape* of the curve comes from the mesh's structure (Reeb
+graph: one branch per part, the genus, no fold) and its medial axis; E decides the radii and
+the fine placement within that shape. Letting E also choose sigma freely and split bones where
+it is worst (the earlier default) made bones zig-zag through the volume: E is low for any curve
+whose balls fill the shape. ``SkeletonParams.paper()`` skips centre and edit: the method as
+published.
 """
 
 from __future__ import annotations
@@ -13,34 +26,23 @@ from typing import Callable, Iterator
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .candidates import best_of_candidates
-from .collapse import collapse_short_bones
-from .energy import energy
+from .centreline import centre_stage
+from .edit import edit_stage
 from .errors import CurveSkelError
-from .mesh_graph import components
 from .mapping import closest_on_bones
+from .mesh_graph import components
 from .mesh_input import clean_mesh
 from .params import SkeletonParams, check_params
-from .postprocess import postprocess, unfold_chains
 from .problem import FitProblem, SolverState
 from .reeb import first_approximation
-from .refine import refine
-from .refit import bone_neighbours
 from .skeleton import Skeleton
 from .solvers import solve_steps
+from .state import PipelineState
 from .vertex_area import vertex_areas
 
 __all__ = ["skeletonize", "SkeletonRun"]
 
 Progress = Callable[[str, float], None]
-
-#: Bones not longer than this fraction of the bounding-box diagonal are contracted at the end.
-COLLAPSE_RADIUS = 0.02   # ... or than this fraction of the smaller end radius
-#: Solver iterations after each refinement round (the split is local: the rest is converged).
-REFINE_ITERATIONS = 20
-#: Above this many faces the refinement is skipped (see ``_refine``).
-REFINE_MAX_FACES = 500_000
-COLLAPSE_TOL = 1e-4   # 0.01 % of the size: invisible, and the solver leaves such pairs only ~1e-6 apart
 
 
 class SkeletonRun:
@@ -68,12 +70,13 @@ class SkeletonRun:
             # clean_mesh found them already (None: compute them here)
             self.n_components, self.labels = (self.mesh.components
                                               or components(len(self.mesh.V), self.mesh.F))
-        self.problem = self._first_approximation()
+        self.state = self._initialise()
+        if self.params.centre:
+            self._centre_and_edit()
         self.energy: list[float] = []
-        self._state: SolverState | None = None
-        self.postprocess_log: dict | None = None
-        self.collapsed: int | None = None
-        self.refine_log: dict | None = None
+        self._solver_state: SolverState | None = None
+        self._fit = self._fit_problem()
+        self._finished: Skeleton | None = None
 
     # -- stages --------------------------------------------------------------------------------
     @contextmanager
@@ -82,194 +85,152 @@ class SkeletonRun:
         yield
         self.timings[stage] = self.timings.get(stage, 0.0) + time.perf_counter() - t0
 
-    def _first_approximation(self) -> FitProblem:
+    def _initialise(self) -> PipelineState:
+        """First approximation of every component, in one graph (regions numbered globally)."""
         V, F, p = self.mesh.V, self.mesh.F, self.params
         face_label = self.labels[F[:, 0]]
-        joints, bones, bone, t = [], [], np.empty(len(V), np.int64), np.empty(len(V))
-        comp_meta = []
-        nj = nb = 0
         order = np.argsort(self.labels, kind="stable")
         starts = np.searchsorted(self.labels[order], np.arange(self.n_components + 1))
         forder = np.argsort(face_label, kind="stable")
         fstarts = np.searchsorted(face_label[forder], np.arange(self.n_components + 1))
         local = np.empty(len(V), np.int64)
+        joints, bones, pairs, spacing = [], [], [], []
+        bone = np.empty(len(V), np.int64)
+        t = np.empty(len(V))
+        region = np.empty(len(V), np.int64)
+        nj = nb = nr = 0
+        comp_meta = []
         for c in range(self.n_components):
             vids = order[starts[c]:starts[c + 1]]
             local[vids] = np.arange(len(vids))
             Fc = local[F[forder[fstarts[c]:fstarts[c + 1]]]]
-            # Several candidates cost several full first approximations and short solves; on a
-            # component larger than the fit subset one candidate is used (recorded in meta).
-            if p.candidates > 1 and (not p.max_fit_points or len(vids) <= p.max_fit_points):
-                with self._timed("candidates"):
-                    fa = best_of_candidates(V[vids], Fc, p, seed=p.seed + c)
-            else:
-                fa = first_approximation(V[vids], Fc, spacing=p.spacing, seed=p.seed + c)
+            fa = first_approximation(V[vids], Fc, spacing=p.spacing, seed=p.seed + c)
             for stage, sec in fa.meta.get("timings", {}).items():
                 self.timings[stage] = self.timings.get(stage, 0.0) + sec
+            if fa.region is None:             # one bone for the whole component
+                reg_c = np.zeros(len(vids), np.int64)
+                breg_c = np.zeros(len(fa.bones), np.int64)
+            else:
+                reg_c, breg_c = fa.region, fa.bone_region
             joints.append(fa.joints)
             bones.append(fa.bones + nj)
             bone[vids] = fa.bone + nb
             t[vids] = fa.t
+            region[vids] = reg_c + nr
+            pairs.append(np.stack([breg_c + nr, np.arange(len(fa.bones)) + nb], axis=1))
+            Vc = V[vids]
+            diag = float(np.linalg.norm(Vc.max(axis=0) - Vc.min(axis=0)))
+            spacing.append(np.full(len(fa.bones), fa.meta.get("spacing_used", p.spacing) * diag))
             nj += len(fa.joints)
             nb += len(fa.bones)
+            nr += int(max(reg_c.max(initial=-1), breg_c.max(initial=-1))) + 1
             comp_meta.append({k: v for k, v in fa.meta.items() if k != "timings"}
                              | {"vertices": int(len(vids)), "joints": int(len(fa.joints)),
                                 "bones": int(len(fa.bones))})
             self.progress("first_approximation", (c + 1) / self.n_components)
-        with self._timed("weights"):
-            w = vertex_areas(V, F) if p.area_weighted else np.ones(len(V))
-            if p.area_weighted:
-                w = w * (len(V) / max(w.sum(), 1e-300))   # mean weight 1: E stays on the vertex-sum scale
         self.component_meta = comp_meta
-        pr = FitProblem(V, w, np.concatenate(joints), np.concatenate(bones), bone, t)
-        # Regularisation settings travel with the problem (the "lm" solver reads them).
-        pr.meta["regularisation"] = {"smoothness": float(p.smoothness),
-                                     "containment": float(p.containment), "surface": (V, F)}
+        self._bone_spacing = np.concatenate(spacing)
+        with self._timed("weights"):
+            if p.area_weighted:
+                w = vertex_areas(V, F)
+                w = w * (len(V) / max(w.sum(), 1e-300))   # mean 1: E stays on the vertex-sum scale
+            else:
+                w = np.ones(len(V))
+        st = PipelineState(V, F, w, np.concatenate(joints), np.concatenate(bones), bone, t, region,
+                           np.unique(np.concatenate(pairs), axis=0))
+        st.record("initialise", sum(self.timings.get(k, 0.0) for k in
+                                    ("pole", "contours", "reeb", "meb", "mapping")))
+        return st
+
+    def _centre_and_edit(self) -> None:
+        p, st = self.params, self.state
+        diag = float(np.linalg.norm(np.ptp(self.mesh.V, axis=0))) if len(self.mesh.V) else 1.0
+        t0 = time.perf_counter()
+        with self._timed("centre"):
+            centre_stage(st, self._bone_spacing, smooth=p.smoothness, seed=p.seed)
+        st.record("centre", time.perf_counter() - t0)
+        self.progress("centre", 1.0)
+        t0 = time.perf_counter()
+        with self._timed("edit"):
+            self.edit_log = edit_stage(st, prune=p.prune, simplify=p.simplify,
+                                       max_joints=p.max_joints, diag=diag)
+        st.record("edit", time.perf_counter() - t0)
+        self.progress("edit", 1.0)
+
+    def _fit_problem(self) -> FitProblem:
+        """The final fit's problem: all vertices, or an area-weighted subset above
+        ``max_fit_points`` (an unbiased quadrature of the same surface integral)."""
+        p, st = self.params, self.state
+        pr = st.problem().copy()
+        pr.meta["regularisation"] = {"smoothness": 0.0, "containment": float(p.containment),
+                                     "surface": (st.V, st.F), "anchor": float(p.centring),
+                                     "anchor_points": st.joints[:, :3].copy()}
         self.fit_subset = None
-        if p.area_weighted and p.max_fit_points and len(V) > p.max_fit_points:
-            with self._timed("weights"):
-                pr = self._subsample(pr, p.max_fit_points)
+        n = len(pr.points)
+        if p.area_weighted and p.max_fit_points and n > p.max_fit_points:
+            rng = np.random.default_rng(p.seed)
+            idx = np.sort(rng.choice(n, size=p.max_fit_points, replace=False))
+            self.fit_subset = idx
+            pr = FitProblem(pr.points[idx], pr.weights[idx] * (n / p.max_fit_points), pr.joints,
+                            pr.bones, pr.bone[idx], pr.t[idx], pr.meta)
         return pr
 
-    def _subsample(self, pr: FitProblem, k: int) -> FitProblem:
-        """Fit k random vertices instead of all of them.
-
-        With area weights E is a quadrature of the surface integral (eq. 8); a uniform random
-        subset with weights scaled by n/k is an unbiased quadrature of the same integral, so the
-        solver's cost stops growing with the mesh while the skeleton stays that of the surface.
-        Every vertex is mapped onto the final skeleton in :meth:`_full_mapping`.
-        """
-        n = len(pr.points)
-        rng = np.random.default_rng(self.params.seed)
-        idx = np.sort(rng.choice(n, size=k, replace=False))
-        self.fit_subset = idx
-        sub = FitProblem(pr.points[idx], pr.weights[idx] * (n / k), pr.joints, pr.bones,
-                         pr.bone[idx], pr.t[idx], dict(pr.meta))
-        return sub
-
-    def _full_mapping(self, joints, bones, bone_sub) -> tuple[np.ndarray, np.ndarray]:
-        """Map every working vertex: the bone of its nearest fitted point and that bone's
-        neighbours are the candidates; the closest point on them is sigma (eq. 19)."""
-        V = self.mesh.V
-        _, nn = cKDTree(V[self.fit_subset]).query(V, workers=-1)
-        seed_bone = bone_sub[nn]
-        table, count = bone_neighbours(bones, len(joints))
-        c = count[seed_bone]
-        mask = np.arange(table.shape[1])[None, :] < c[:, None]
-        ids = table[seed_bone][mask]
-        indptr = np.concatenate([[0], np.cumsum(c)])
-        bone, t, _ = closest_on_bones(V, joints, bones, (indptr, ids))
-        return bone, t
-
     def steps(self) -> Iterator[SolverState]:
-        """Run the solver, yielding its state after every iteration (the first is E0)."""
+        """Run the final fit, yielding its state after every iteration (the first is E0)."""
         p = self.params
         t0 = time.perf_counter()
         try:
-            for state in solve_steps(self.problem, solver=p.solver, max_iterations=p.max_iterations,
-                                     tolerance=p.tolerance, refit_mapping=p.refit_mapping):
-                self._state = state
-                self.energy.append(float(state.energy))
-                self.progress("optimise", min(state.iteration / max(p.max_iterations, 1), 1.0))
-                yield state
+            for s in solve_steps(self._fit, solver=p.solver, max_iterations=p.max_iterations,
+                                 tolerance=p.tolerance, refit_mapping=p.refit_mapping):
+                self._solver_state = s
+                self.energy.append(float(s.energy))
+                self.progress("optimise", min(s.iteration / max(p.max_iterations, 1), 1.0))
+                yield s
         finally:
             self.timings["optimise"] = self.timings.get("optimise", 0.0) + time.perf_counter() - t0
 
     def current_skeleton(self) -> Skeleton:
-        """The skeleton as it stands now (first approximation before any step)."""
-        pr, st = self.problem, self._state
-        joints = st.joints if st is not None else pr.joints
-        bone = st.bone if st is not None else pr.bone
-        t = st.t if st is not None else pr.t
-        return self._to_skeleton(joints, pr.bones, bone, t)
+        """The skeleton as it stands now (before the fit: the centred, edited curve)."""
+        s = self._solver_state
+        if s is None:
+            joints, bone, t = self.state.joints, self.state.bone, self.state.t
+        else:
+            joints = _flip_radii(s.joints)
+            bone, t = self._mapping(joints, s)
+        return self._to_skeleton(joints, self.state.bones, bone, t, self.energy)
 
     def result(self) -> Skeleton:
-        """Run any remaining steps, then prune/simplify (once), and return the final Skeleton."""
-        if self._state is None or not self._state.done:
+        """Run any remaining steps and return the final Skeleton; its ``energy[-1]`` is the E
+        of the returned skeleton with its returned mapping."""
+        if self._finished is not None:
+            return self._finished
+        if self._solver_state is None or not self._solver_state.done:
             for _ in self.steps():
                 pass
-        self._postprocess()
-        self._refine()
-        self._collapse()
-        return self.current_skeleton()
+        st, s = self.state, self._solver_state
+        t0 = time.perf_counter()
+        with self._timed("finish"):
+            st.joints = _flip_radii(s.joints)
+            st.bone, st.t = self._mapping(st.joints, s)
+        st.record("fit", self.timings.get("optimise", 0.0) + time.perf_counter() - t0,
+                  iterations=int(s.iteration))
+        # E over the fit (on the fitted points), its last value replaced by the E of what is
+        # returned (all vertices, radii flipped, every vertex mapped)
+        E = (list(self.energy[:-1]) if self.fit_subset is None else []) + [st.log[-1]["energy"]]
+        self._finished = self._to_skeleton(st.joints, st.bones, st.bone, st.t, E)
+        return self._finished
 
-    def _collapse(self) -> None:
-        """Contract zero-length bones (joints the optimum put on one point), once."""
-        st = self._state
-        if st is None or self.collapsed is not None:
-            return
-        V = self.mesh.V
-        B = self.problem.bones
-        # Per bone: invisible at the mesh's scale, or hidden inside its own end balls.
-        tol = np.maximum(COLLAPSE_TOL * float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))),
-                         COLLAPSE_RADIUS * np.minimum(st.joints[B[:, 0], 3], st.joints[B[:, 1], 3]))
-        J0 = len(st.joints)
-        joints, bones, bone, t = collapse_short_bones(st.joints, self.problem.bones, st.bone, st.t, tol)
-        self.collapsed = J0 - len(joints)
-        if self.collapsed:
-            self.problem = FitProblem(self.problem.points, self.problem.weights, joints, bones,
-                                      bone, t, self.problem.meta)
-            self._state = SolverState(st.iteration, joints, bone, t, st.energy, done=True)
-
-    def _postprocess(self) -> None:
-        """Prune noise branches and merge straight-chain joints (``params.prune``/``simplify``),
-        re-optimising after each; replaces the problem's bones and the final state."""
-        p, st = self.params, self._state
-        if self.postprocess_log is not None or not (p.prune > 0 or p.simplify > 0):
-            return
-        pr = self.problem.copy()
-        pr.joints, pr.bone, pr.t = st.joints, st.bone, st.t
-        with self._timed("postprocess"):
-            out = postprocess(pr, p, self._solve)
-        self.postprocess_log = out.meta["postprocess"]
-        self.problem = FitProblem(out.points, out.weights, out.joints, out.bones, out.bone, out.t,
-                                  dict(pr.meta))
-        self._state = SolverState(st.iteration, out.joints, out.bone, out.t,
-                                  self.postprocess_log["energy_out"], done=True)
-
-    def _refine(self) -> None:
-        """Once: merge away folds (:func:`.postprocess.unfold_chains`), then split the bones
-        that leave the mesh and re-solve (``params.refine`` rounds, :mod:`.refine`; its first
-        solve serves the unfolded skeleton too), then repair locally."""
-        p, st = self.params, self._state
-        if self.refine_log is not None or p.refine <= 0 or st is None:
-            return
-        if len(self.mesh.F) > REFINE_MAX_FACES:
-            # Its exact inside tests cost O(faces) per ray direction: on 2M faces more than
-            # the whole fit (12 s against 8 s on torus-1M). Said in the meta, not silent.
-            self.refine_log = {"skipped": f"{len(self.mesh.F)} faces > {REFINE_MAX_FACES}"}
-            return
-        pr = self.problem.copy()
-        pr.joints, pr.bone, pr.t = st.joints, st.bone, st.t
-        with self._timed("refine"):
-            # Folds first (a chain doubling back along another part), then the bones that
-            # leave the mesh (the last word on containment); the refinement's first solve
-            # serves the unfolded skeleton too.
-            pr, unfolded = unfold_chains(pr)
-            out, self.refine_log = refine(pr, self.mesh.V, self.mesh.F,
-                                          lambda q: self._solve(q, REFINE_ITERATIONS),
-                                          max_joints=p.max_joints, rounds=p.refine,
-                                          solved=not unfolded)
-            self.refine_log["unfolded"] = unfolded
-        self.problem = FitProblem(out.points, out.weights, out.joints, out.bones, out.bone, out.t,
-                                  dict(pr.meta))
-        self._state = SolverState(st.iteration, out.joints, out.bone, out.t, energy(out), done=True)
-
-    def _solve(self, pr: FitProblem, max_iterations: int | None = None) -> FitProblem:
-        """Re-optimise ``pr`` with the run's solver settings (used after pruning/merging)."""
-        p, last = self.params, None
-        its = p.max_iterations if max_iterations is None else min(max_iterations, p.max_iterations)
-        for last in solve_steps(pr, solver=p.solver, max_iterations=its,
-                                tolerance=p.tolerance, refit_mapping=p.refit_mapping):
-            pass
-        out = pr.copy()
-        out.joints, out.bone, out.t = last.joints, last.bone, last.t
-        return out
+    def _mapping(self, joints, s: SolverState):
+        """sigma of every working vertex: the solver's own when it fitted every vertex,
+        else the closest point on the bones of the vertex's region."""
+        if self.fit_subset is None:
+            return s.bone, s.t
+        bone, t, _ = closest_on_bones(self.state.V, joints, self.state.bones,
+                                      self.state.candidates())
+        return bone, t
 
     # -- output --------------------------------------------------------------------------------
-    def _to_skeleton(self, joints, bones, bone_w, t_w) -> Skeleton:
-        if self.fit_subset is not None:
-            bone_w, t_w = self._full_mapping(np.asarray(joints), np.asarray(bones), np.asarray(bone_w))
+    def _to_skeleton(self, joints, bones, bone_w, t_w, E) -> Skeleton:
         wi = self.mesh.work_index
         iso = wi < 0
         if iso.any():
@@ -277,21 +238,25 @@ class SkeletonRun:
             _, nn = cKDTree(self.mesh.V).query(self._input_V[iso])
             wi = wi.copy()
             wi[iso] = nn
-        return Skeleton(joints, bones, bone_w[wi], t_w[wi], energy=list(self.energy),
+        return Skeleton(joints, bones, bone_w[wi], t_w[wi], energy=list(E),
                         timings=dict(self.timings), meta=self._meta())
 
     def _meta(self) -> dict:
         meta = {"params": self.params.to_dict(), "components": int(self.n_components),
                 "component_info": self.component_meta, "input": self.mesh.info,
                 "fit_points": int(len(self.fit_subset) if self.fit_subset is not None
-                                  else len(self.mesh.V))}
-        if self.postprocess_log is not None:
-            meta["postprocess"] = self.postprocess_log
-        if self.refine_log is not None:
-            meta["refine"] = self.refine_log
-        if self.collapsed:
-            meta["collapsed_joints"] = int(self.collapsed)
+                                  else len(self.mesh.V)),
+                "stages": [dict(x) for x in self.state.log]}
+        if getattr(self, "edit_log", None) is not None:
+            meta["edit"] = self.edit_log
         return meta
+
+
+def _flip_radii(joints) -> np.ndarray:
+    """Joints with negative radii flipped (r enters E squared; the paper does the same)."""
+    j = np.array(joints, dtype=np.float64)
+    j[:, 3] = np.abs(j[:, 3])
+    return j
 
 
 def skeletonize(V, F, params: SkeletonParams | None = None, progress: Progress | None = None,
@@ -311,7 +276,8 @@ def skeletonize(V, F, params: SkeletonParams | None = None, progress: Progress |
     Returns
     -------
     Skeleton
-        Joints, bones, the mapping of every input vertex (input order), energy history, timings.
+        Joints, bones, the mapping of every input vertex (input order), the E of each stage
+        (the last is the E of the returned skeleton), timings, and per-stage meta.
 
     Raises
     ------

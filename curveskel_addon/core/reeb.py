@@ -103,6 +103,10 @@ class FirstApproximation:
         ``"timings"`` {stage: seconds} for "pole", "contours", "reeb", "meb", "mapping"; and
         "pole", "spacing_used", "levels", "cycles", "expected_cycles", "noise_caps_removed",
         "refinements", "regions", "loops".
+    region : (n,) int or None
+        Reeb region of each vertex (None for the single-bone fallback).
+    bone_region : (B,) int or None
+        Reeb region each bone explains: a vertex's sigma stays on the bones of its region.
     """
 
     joints: np.ndarray
@@ -110,6 +114,8 @@ class FirstApproximation:
     bone: np.ndarray
     t: np.ndarray
     meta: dict = field(default_factory=dict)
+    region: np.ndarray | None = None
+    bone_region: np.ndarray | None = None
 
 
 # ------------------------------------------------------------------------------------------------
@@ -350,7 +356,7 @@ def _embed(V, diag, ct: _Contours, rb: _Reeb, kept):
     bone_reg = np.array(bone_reg, np.int64)
     _nudge_zero_bones(joints, bones, bone_reg, V, vorder, vstarts, diag, L)
     border, bstarts = _group(bone_reg, R)
-    return joints, bones, border, bstarts
+    return joints, bones, border, bstarts, bone_reg
 
 
 def _nudge_zero_bones(joints, bones, bone_reg, V, vorder, vstarts, diag, n_loop_joints):
@@ -483,10 +489,13 @@ def first_approximation(V, F, *, spacing: float, seed: int) -> FirstApproximatio
         joints, bones = _single_bone(V, diag)
         region_bones = None
     else:
-        joints, bones, border, bstarts = _embed(V, diag, ct, rb, kept)
+        joints, bones, border, bstarts, bone_reg = _embed(V, diag, ct, rb, kept)
         region_bones = (rb.reg_v, border, bstarts)
     timings["meb"] = time.perf_counter() - t0
-    return _finish(V, joints, bones, region_bones, meta, timings)
+    fa = _finish(V, joints, bones, region_bones, meta, timings)
+    if region_bones is not None:
+        fa.region, fa.bone_region = rb.reg_v.astype(np.int64), bone_reg
+    return fa
 
 
 def _finish(V, joints, bones, region_bones, meta, timings) -> FirstApproximation:

@@ -28,9 +28,9 @@ from meshes import tube_along
 BODY = (0.5, 5.5)          # compare away from the caps (the ends of a skeleton are free to vary)
 ZQ = np.linspace(*BODY, 51)
 SPACING = 0.08             # about 50 joints: every bone spans several ripple periods
-# Isolate the weighting: the other improvements (candidates, pruning, merging) change the
+# Isolate the weighting: the other improvements (pruning, merging, the joint budget) change the
 # joint layout being compared and are tested on their own.
-ISOLATE = dict(prune=0.0, simplify=0.0, candidates=1)
+ISOLATE = dict(centre=False, prune=0.0, simplify=0.0, max_joints=0, max_iterations=100)
 
 
 def ripple_capsule(density_ratio=1.0, P=0.1, A=0.12, L=6.0, per_period=8, n_around=24):

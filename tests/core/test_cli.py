@@ -96,4 +96,12 @@ def test_help_explains_every_method_parameter():
     names = {f.name for f in fields(SkeletonParams)}
     assert names <= set(cli._HELP), sorted(names - set(cli._HELP))
     h = run("--help").stdout
-    assert "--refine REFINE" in h and "rounds of splitting bones" in h
+    assert "--smoothness SMOOTHNESS" in h and "smoothness of the curve" in h
+    # the artist's four settings come first, in their own group; the rest under "advanced"
+    art = h.index("skeleton settings")
+    adv = h.index("advanced method parameters")
+    assert art < adv
+    for name in SkeletonParams.ARTIST:
+        assert art < h.index("\n  --" + name.replace("_", "-"), art) < adv
+    for name in names - set(SkeletonParams.ARTIST):
+        assert h.index("\n  --" + name.replace("_", "-")) > adv

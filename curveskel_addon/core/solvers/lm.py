@@ -220,7 +220,7 @@ class _Regulariser:
         self.kc = self.ks = 0.0
         self.active = False
         self._memo = None
-        if J == 0 or not (c > 0 or s > 0) or not E0 > 0:
+        if J == 0 or not (c > 0 or s > 0 or float(cfg.get("anchor", 0.0) or 0.0) > 0) or not E0 > 0:
             return
         r = joints[:, 3]
         pos = r[r > 0]
@@ -264,7 +264,17 @@ class _Regulariser:
                 self.L = sp.csr_matrix((vals, (rows, cols)), shape=(3 * len(mids), 4 * J))
                 self.ks = s * S
                 self.LtL = (self.ks * (self.L.T @ self.L)).tocsc()
-        self.active = self.kc > 0 or self.ks > 0
+        # anchor: joints held towards given positions (the centred curve), sqrt(ka) (x - a)
+        self.ka = 0.0
+        an = float(cfg.get("anchor", 0.0) or 0.0)
+        apts = cfg.get("anchor_points")
+        if an > 0 and apts is not None and len(apts) == J:
+            self.ka = an * S
+            self.apts = np.asarray(apts, np.float64)[:, :3]
+            self.amask = np.zeros((J, 4))
+            self.amask[:, :3] = 1.0
+            self.AtA = sp.diags(self.ka * self.amask.ravel()).tocsc()
+        self.active = self.kc > 0 or self.ks > 0 or self.ka > 0
 
     def _containment(self, joints):
         """Violation ``g = r - d(x)`` (S,) at every containment sample (joints and points along
@@ -315,6 +325,9 @@ class _Regulariser:
         if self.ks > 0:
             v = self.L @ joints.ravel()
             R += self.ks * float(v @ v)
+        if self.ka > 0:
+            v = joints[:, :3] - self.apts
+            R += self.ka * float(np.sum(v * v))
         return R
 
     def add(self, joints, jtr, H):
@@ -344,6 +357,13 @@ class _Regulariser:
             R += self.ks * float(v @ v)
             jtr += self.ks * (self.L.T @ v)
             H = H + self.LtL
+        if self.ka > 0:
+            v = (joints[:, :3] - self.apts)
+            R += self.ka * float(np.sum(v * v))
+            g = np.zeros_like(joints)
+            g[:, :3] = v
+            jtr += self.ka * g.ravel()
+            H = H + self.AtA
         return R, jtr, H.tocsc()
 
     def line_quadratic(self, joints, h) -> np.ndarray:
@@ -356,6 +376,10 @@ class _Regulariser:
         if self.ks > 0:
             v0, v1 = self.L @ joints.ravel(), self.L @ h.ravel()
             q[:3] += self.ks * np.array([v0 @ v0, 2.0 * v0 @ v1, v1 @ v1])
+        if self.ka > 0:
+            v0 = (joints[:, :3] - self.apts).ravel()
+            v1 = h.reshape(-1, 4)[:, :3].ravel()
+            q[:3] += self.ka * np.array([v0 @ v0, 2.0 * v0 @ v1, v1 @ v1])
         return q
 
 

@@ -1,0 +1,432 @@
+"""Topology edits of a skeleton: remove, merge and split, with their constants in one place.
+
+Every edit works on the graph (joints, bones) and returns, besides the new graph, the map
+``old bone -> new bone`` so that each vertex's candidate bones (its Reeb region's, see
+:func:`.centreline.region_candidates`) follow the edit; sigma is then re-computed by closest
+point on those candidates. No edit moves a joint off the curve it lies on, so none can create
+a fold; the merges keep a joint wherever the chain turns by more than the tolerance allows, so
+none creates a zig-zag.
+
+Operators
+---------
+* :func:`chains` - the maximal paths of degree-2 joints between junctions and leaves.
+* :func:`merge_chains` (merge) - Douglas-Peucker on every chain: a joint whose chain stays
+  within ``tol`` (per joint, e.g. a fraction of its radius) of the straight bone that would
+  replace it is removed. Tip bones shorter than the tolerance are merged the same way.
+* :func:`collapse_short_bones` (merge) - a bone shorter than ``tol`` is contracted into one
+  joint (at its junction end if it has one).
+* :func:`prune_leaves` (remove) - a leaf branch (leaf to junction) shorter than ``factor``
+  times the junction's radius lies inside the junction's ball: a bump, not a part.
+* :func:`.centreline.split_long_bones` (split) - bones longer than a length split in equal
+  pieces, on the bone.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["chains", "merge_chains", "collapse_short_bones", "prune_leaves", "compact", "chain_turns", "remove_sharp_turns", "edit_stage",
+           "EDIT_CONSTANTS"]
+
+#: The edit stage's constants (pipeline defaults), named once.
+EDIT_CONSTANTS = {
+    # merge: a chain joint is removed when its chain stays within this many radii of the
+    # bone replacing it (and within MERGE_MAX_DIAG of the size, so huge radii do not wipe a bend)
+    "merge_radius_fraction": 0.25,
+    "merge_max_diag": 0.01,
+    # remove: a leaf branch reaching out of its junction's ball by less than this many of its
+    # own radii is a bump of the junction, not a part
+    "prune_radius_factor": 1.0,
+    # merge: no merged bone longer than this fraction of the size (a loop keeps its shape)
+    "merge_max_length": 0.05,
+    # merge: a chain joint turning by more than this (degrees) is a zig-zag when one of its
+    # bones is shorter than its radius and the bone replacing it passes within
+    # ``sharp_radius_fraction`` of its radius
+    "sharp_turn": 60.0,
+    "sharp_radius_fraction": 1.0,
+    # the joint budget: the merge tolerance grows by this factor until it is met
+    "budget_growth": 1.5,
+}
+
+
+def _adjacency(n_joints, bones):
+    """CSR neighbours: (indptr, nbr joint, bone id)."""
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    ends = np.r_[bones[:, 0], bones[:, 1]]
+    other = np.r_[bones[:, 1], bones[:, 0]]
+    bid = np.r_[np.arange(len(bones)), np.arange(len(bones))]
+    o = np.argsort(ends, kind="stable")
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(ends, minlength=n_joints))])
+    return indptr, other[o], bid[o]
+
+
+def chains(n_joints, bones):
+    """Maximal paths whose inner joints have degree 2.
+
+    Returns
+    -------
+    list of (joints list, bones list): joints in path order (ends included), the bones
+    between them. A cycle of degree-2 joints only starts and ends at its lowest joint.
+    """
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    indptr, nbr, bid = _adjacency(n_joints, bones)
+    deg = np.diff(indptr)
+    used = np.zeros(len(bones), bool)
+    out = []
+
+    def walk(start, k):
+        js, bs = [start], []
+        prev, cur, b = start, nbr[k], bid[k]
+        used[b] = True
+        bs.append(int(b))
+        js.append(int(cur))
+        while deg[cur] == 2 and cur != start:
+            a, c = indptr[cur], indptr[cur] + 1
+            k2 = c if bid[a] == b else a
+            b = bid[k2]
+            if used[b]:
+                break
+            used[b] = True
+            prev, cur = cur, nbr[k2]
+            bs.append(int(b))
+            js.append(int(cur))
+        return js, bs
+
+    for s in np.flatnonzero(deg != 2):
+        for k in range(indptr[s], indptr[s + 1]):
+            if not used[bid[k]]:
+                out.append(walk(int(s), k))
+    for b in np.flatnonzero(~used):          # pure cycles
+        if used[b]:
+            continue
+        s = int(bones[b, 0])
+        k = indptr[s] + (0 if bid[indptr[s]] == b else 1)
+        out.append(walk(s, k))
+    return out
+
+
+def _dp_keep(P, tol, max_len=np.inf):
+    """Douglas-Peucker on a polyline P (k, 3): mask of the points to keep (ends always).
+    A span longer than ``max_len`` is split at its farthest point as well."""
+    k = len(P)
+    keep = np.zeros(k, bool)
+    keep[0] = keep[-1] = True
+    stack = [(0, k - 1)]
+    while stack:
+        a, b = stack.pop()
+        if b - a < 2:
+            continue
+        seg = P[b] - P[a]
+        L2 = float(seg @ seg)
+        Q = P[a + 1:b] - P[a]
+        if L2 > 0:
+            u = np.clip(Q @ seg / L2, 0.0, 1.0)
+            d = np.linalg.norm(Q - u[:, None] * seg, axis=1)
+        else:
+            d = np.linalg.norm(Q, axis=1)
+        excess = d - tol[a + 1:b]
+        m = int(np.argmax(excess))
+        if L2 > max_len * max_len and excess[m] <= 0:
+            # too long a bone: split at the joint nearest the middle of the span
+            cum = np.linalg.norm(P[a + 1:b] - P[a], axis=1)
+            m = int(np.argmin(np.abs(cum - 0.5 * np.sqrt(L2))))
+            excess[m] = 1.0
+        if excess[m] > 0:
+            keep[a + 1 + m] = True
+            stack += [(a, a + 1 + m), (a + 1 + m, b)]
+    return keep
+
+
+def merge_chains(joints, bones, tol, max_len=np.inf):
+    """Remove chain joints the straight bone replacing them explains within ``tol``.
+
+    Parameters
+    ----------
+    joints : (J, 4) float
+    bones : (B, 2) int
+    tol : (J,) float
+        Allowed distance of each removed joint from the new bone.
+
+    Returns
+    -------
+    joints, bones, bone_map : the new graph (compacted) and, per old bone, its new bone.
+    """
+    joints = np.asarray(joints, np.float64)
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    J = len(joints)
+    new_bones, bone_map = [], np.full(len(bones), -1, np.int64)
+    keep_joint = np.zeros(J, bool)
+    for js, bs in chains(J, bones):
+        js = np.asarray(js)
+        if len(js) >= 3 and js[0] == js[-1]:
+            # a cycle: keep at least three joints so it stays a cycle
+            kp = _dp_keep(joints[js, :3], tol[js], max_len)
+            if kp.sum() < 4:
+                idx = np.linspace(0, len(js) - 1, 4).round().astype(int)
+                kp[idx] = True
+        else:
+            kp = _dp_keep(joints[js, :3], tol[js], max_len)
+        kept = np.flatnonzero(kp)
+        keep_joint[js[kept]] = True
+        for a, b in zip(kept[:-1], kept[1:]):
+            nb = len(new_bones)
+            new_bones.append((js[a], js[b]))
+            bone_map[np.asarray(bs[a:b])] = nb
+    nb = np.array(new_bones, np.int64).reshape(-1, 2)
+    return compact(joints, nb, bone_map, keep_joint)
+
+
+def compact(joints, bones, bone_map, keep_joint=None):
+    """Drop joints no bone uses (or not in ``keep_joint``) and renumber."""
+    J = len(joints)
+    used = np.zeros(J, bool)
+    used[bones.ravel()] = True
+    if keep_joint is not None:
+        used |= keep_joint & (np.bincount(bones.ravel(), minlength=J) > 0)
+    if len(bones) == 0:
+        used[:] = True
+    new_id = np.cumsum(used) - 1
+    return joints[used], new_id[bones], bone_map
+
+
+def collapse_short_bones(joints, bones, tol):
+    """Contract every bone shorter than ``tol`` (per bone) into one joint.
+
+    The surviving joint is the end of higher degree (a junction keeps its place), else the
+    midpoint; contracted bones map to the bone that absorbs their vertices (-1 -> caller maps
+    their vertices by closest point on the neighbours). Returns joints, bones, bone_map.
+    """
+    joints = np.asarray(joints, np.float64).copy()
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    J, B = len(joints), len(bones)
+    L = np.linalg.norm(joints[bones[:, 0], :3] - joints[bones[:, 1], :3], axis=1)
+    short = np.flatnonzero(L < tol)
+    if short.size == 0 or B <= 1:
+        return joints, bones, np.arange(B)
+    # union-find over short bones, one pass in order of length (cycles stay: skip a bone whose
+    # ends are already joined)
+    parent = np.arange(J)
+
+    def find(a):
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    deg = np.bincount(bones.ravel(), minlength=J)
+    removed = np.zeros(B, bool)
+    for b in short[np.argsort(L[short])]:
+        i, j = find(bones[b, 0]), find(bones[b, 1])
+        if i == j:
+            continue
+        if deg[j] > deg[i]:
+            i, j = j, i
+        if deg[i] == deg[j]:
+            joints[i] = 0.5 * (joints[i] + joints[j])
+        parent[j] = i
+        deg[i] += deg[j] - 2
+        removed[b] = True
+    root = np.array([find(a) for a in range(J)])
+    nb = root[bones]
+    keep = ~removed & (nb[:, 0] != nb[:, 1])
+    # duplicates (two bones now joining the same pair): keep the first
+    key = np.sort(nb, axis=1)
+    _, first = np.unique(key[keep], axis=0, return_index=True)
+    kb = np.flatnonzero(keep)[np.sort(first)]
+    bone_map = np.full(B, -1, np.int64)
+    bone_map[kb] = np.arange(len(kb))
+    # a removed or duplicate bone maps to a surviving bone at the same joint
+    new_bones = nb[kb]
+    for b in np.flatnonzero(bone_map < 0):
+        r = root[bones[b, 0]]
+        cand = np.flatnonzero((new_bones[:, 0] == r) | (new_bones[:, 1] == r))
+        if cand.size:
+            bone_map[b] = cand[0]
+        else:
+            bone_map[b] = 0
+    j2, b2, _ = compact(joints, new_bones, bone_map)
+    return j2, b2, bone_map
+
+
+def prune_leaves(joints, bones, factor, *, max_rounds=10):
+    """Remove leaf branches reaching out of their junction's ball by less than ``factor``
+    times their own mean radius.
+
+    Returns joints, bones, bone_map (pruned bones map to the junction's nearest bone).
+    """
+    joints = np.asarray(joints, np.float64)
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    B0 = len(bones)
+    bone_map = np.arange(B0)
+    for _ in range(max_rounds):
+        J = len(joints)
+        deg = np.bincount(bones.ravel(), minlength=J)
+        drop = []
+        for js, bs in chains(J, bones):
+            a, b = js[0], js[-1]
+            if a == b:
+                continue
+            leaf, junc = (a, b) if deg[a] == 1 and deg[b] >= 3 else (b, a) if deg[b] == 1 and deg[a] >= 3 else (None, None)
+            if leaf is None:
+                continue
+            P = joints[js, :3]
+            length = float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())
+            # how far the branch reaches out of the junction's ball, against its own thickness
+            out = length - joints[junc, 3]
+            own = float(np.mean(joints[js[1:-1] if len(js) > 2 else js, 3]))
+            if out < factor * own:
+                drop.append((length, bs, junc))
+        if not drop:
+            break
+        # at most all-but-two branches of one junction per round (a junction keeps degree >= 2)
+        drop.sort(key=lambda x: x[0])
+        removed = np.zeros(len(bones), bool)
+        left = deg.copy()
+        for _, bs, junc in drop:
+            if left[junc] <= 2:
+                continue
+            removed[bs] = True
+            left[junc] -= 1
+        if not removed.any():
+            break
+        keep = np.flatnonzero(~removed)
+        m = np.full(len(bones), -1, np.int64)
+        m[keep] = np.arange(len(keep))
+        nbones = bones[keep]
+        for _, bs, junc in drop:
+            if not removed[bs[0]]:
+                continue
+            # the branch's vertices go to a kept bone at the junction it hangs from
+            cand = np.flatnonzero((nbones == junc).any(axis=1))
+            m[bs] = cand[0] if cand.size else 0
+        bone_map = m[bone_map]
+        joints, bones, _ = compact(joints, nbones, None)
+    return joints, bones, bone_map
+
+
+def chain_turns(joints, bones):
+    """Turning angle (degrees) at every joint of degree 2, and its two neighbours.
+
+    Returns
+    -------
+    chain : (c,) int, a : (c,) int, b : (c,) int, turn : (c,) float
+    """
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    J = len(joints)
+    indptr, nbr, _ = _adjacency(J, bones)
+    deg = np.diff(indptr)
+    chain = np.flatnonzero(deg == 2)
+    a, b = nbr[indptr[chain]], nbr[indptr[chain] + 1]
+    X = np.asarray(joints, np.float64)[:, :3]
+    u, v = X[chain] - X[a], X[b] - X[chain]
+    nu, nv = np.linalg.norm(u, axis=1), np.linalg.norm(v, axis=1)
+    c = np.einsum("ij,ij->i", u, v) / np.maximum(nu * nv, 1e-300)
+    turn = np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
+    turn[(nu <= 0) | (nv <= 0)] = 0.0
+    return chain, a, b, turn
+
+
+def remove_sharp_turns(joints, bones, tol, max_turn=60.0, max_rounds=20):
+    """Merge away chain joints turning by more than ``max_turn`` degrees when the bone that
+    replaces them passes within ``tol[j]`` of the removed joint and one of its bones is
+    shorter than the joint's radius (a zig-zag smaller than the part's thickness); a real bend
+    (an elbow) made of bones longer than that stays.
+
+    Returns joints, bones, bone_map (compacted).
+    """
+    joints = np.asarray(joints, np.float64)
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    bone_map = np.arange(len(bones))
+    for _ in range(max_rounds):
+        chain, a, b, turn = chain_turns(joints, bones)
+        if chain.size == 0:
+            break
+        X = joints[:, :3]
+        seg = X[b] - X[a]
+        L2 = np.einsum("ij,ij->i", seg, seg)
+        u = np.clip(np.einsum("ij,ij->i", X[chain] - X[a], seg) / np.maximum(L2, 1e-300), 0, 1)
+        d = np.linalg.norm(X[chain] - X[a] - u[:, None] * seg, axis=1)
+        short = np.minimum(np.linalg.norm(X[chain] - X[a], axis=1),
+                           np.linalg.norm(X[b] - X[chain], axis=1)) <= joints[chain, 3]
+        cand = np.flatnonzero((turn > max_turn) & (d <= tol[chain]) & (a != b) & short)
+        if cand.size == 0:
+            break
+        # an independent set, sharpest first: no two removed joints adjacent
+        cand = cand[np.argsort(-turn[cand], kind="stable")]
+        taken = np.zeros(len(joints), bool)
+        remove = []
+        for k in cand:
+            j = chain[k]
+            if taken[j] or taken[a[k]] or taken[b[k]]:
+                continue
+            taken[[j, a[k], b[k]]] = True
+            remove.append(k)
+        remove = np.asarray(remove)
+        rj = chain[remove]
+        # the two bones at each removed joint become one (a, b)
+        B = len(bones)
+        dead = np.isin(bones, rj).any(axis=1)
+        m = np.full(B, -1, np.int64)
+        keep = np.flatnonzero(~dead)
+        m[keep] = np.arange(len(keep))
+        new = np.stack([a[remove], b[remove]], axis=1)
+        nb = np.concatenate([bones[keep], new])
+        new_id = len(keep) + np.arange(len(remove))
+        pos = np.full(len(joints), -1, np.int64)
+        pos[rj] = new_id
+        for end in (0, 1):
+            hit = dead & (pos[bones[:, end]] >= 0)
+            m[hit] = pos[bones[hit, end]]
+        bone_map = m[bone_map]
+        joints, bones, _ = compact(joints, nb, None)
+    return joints, bones, bone_map
+
+
+def _refit(state):
+    from .centreline import fit_radii
+    state.remap()
+    state.joints[:, 3] = fit_radii(state.V, state.weights, state.joints, state.bones,
+                                   state.bone, state.t)
+
+
+def edit_stage(state, *, prune, simplify, max_joints, diag):
+    """Remove bumps, merge straight chain joints and zig-zags, meet the joint budget (in place).
+
+    Each operator keeps sigma on its regions' bones (``state.apply_bone_map``) and is followed
+    by a closest-point re-mapping and a radius fit. Returns a dict of what each did.
+    """
+    C = EDIT_CONSTANTS
+    out = {"joints_in": int(len(state.joints))}
+    if prune > 0:
+        n0 = len(state.joints)
+        state.joints, state.bones, m = prune_leaves(state.joints, state.bones, prune)
+        state.apply_bone_map(m)
+        _refit(state)
+        out["pruned_joints"] = int(n0 - len(state.joints))
+
+    def merge(tol_scale):
+        # a fraction of the local radius, capped at a fraction of the size (both grow together)
+        cap = C["merge_max_diag"] * diag * tol_scale / C["merge_radius_fraction"]
+        tol = np.minimum(tol_scale * state.joints[:, 3], cap)
+        j, b, m = merge_chains(state.joints, state.bones, tol, C["merge_max_length"] * diag)
+        state.joints, state.bones = j, b
+        state.apply_bone_map(m)
+        _refit(state)
+
+    if simplify > 0:
+        merge(simplify)
+    if C["sharp_turn"] < 180:
+        state.joints, state.bones, m = remove_sharp_turns(
+            state.joints, state.bones, C["sharp_radius_fraction"] * state.joints[:, 3],
+            C["sharp_turn"])
+        state.apply_bone_map(m)
+        _refit(state)
+    scale = max(simplify, C["merge_radius_fraction"])
+    rounds = 0
+    while max_joints and len(state.joints) > max_joints and rounds < 20:
+        scale *= C["budget_growth"]
+        merge(scale)
+        rounds += 1
+    out["budget_rounds"] = rounds
+    out["joints_out"] = int(len(state.joints))
+    return out

@@ -1,0 +1,115 @@
+"""The state one skeletonization passes through its stages (initialise, centre, edit, fit).
+
+Every stage reads a :class:`PipelineState` and leaves a new graph in it; :meth:`PipelineState.record`
+logs the stage with the E of the skeleton it left (E of eq. 20 with the state's weights and its
+own mapping), so the E reported for a run is always the E of the skeleton returned.
+
+The mapping sigma never leaves the Reeb structure: ``pairs`` lists (region, bone) -- the bones
+that explain each Reeb region of the first approximation. Edits rewrite the bone side through
+their ``bone_map``; :meth:`PipelineState.remap` then puts every vertex on the closest point of
+the bones of its own region.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .energy import energy
+from .mapping import closest_on_bones
+from .problem import FitProblem
+
+__all__ = ["PipelineState", "candidates_from_pairs"]
+
+
+def candidates_from_pairs(pairs, region, n_regions):
+    """CSR (indptr, bone ids) of each point's candidate bones: the bones of its region.
+
+    Parameters
+    ----------
+    pairs : (P, 2) int
+        (region, bone) rows, unique.
+    region : (n,) int
+        Region of each point.
+    n_regions : int
+
+    Returns
+    -------
+    (indptr (n + 1,), ids (p,)) as :func:`.mapping.closest_on_bones` takes them.
+    """
+    pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
+    o = np.argsort(pairs[:, 0], kind="stable")
+    st = np.concatenate([[0], np.cumsum(np.bincount(pairs[:, 0], minlength=n_regions))])
+    cnt = np.diff(st)[region]
+    indptr = np.concatenate([[0], np.cumsum(cnt)])
+    local = np.arange(indptr[-1]) - np.repeat(indptr[:-1], cnt)
+    return indptr, pairs[o, 1][np.repeat(st[region], cnt) + local]
+
+
+@dataclass
+class PipelineState:
+    """Working mesh, weights, the skeleton so far and its mapping.
+
+    Attributes
+    ----------
+    V : (n, 3) float, F : (m, 3) int
+        The cleaned working mesh.
+    weights : (n,) float
+        Weight of each vertex in E (area, mean 1; or 1 for the paper's vertex sum).
+    joints : (J, 4) float, bones : (B, 2) int
+    bone : (n,) int, t : (n,) float
+        sigma of every vertex.
+    region : (n,) int
+        Reeb region of every vertex (unique over components).
+    pairs : (P, 2) int
+        (region, bone): the bones each region's vertices may map to.
+    log : list of dict
+        One entry per stage: name, E, joints, bones, seconds.
+    """
+
+    V: np.ndarray
+    F: np.ndarray
+    weights: np.ndarray
+    joints: np.ndarray
+    bones: np.ndarray
+    bone: np.ndarray
+    t: np.ndarray
+    region: np.ndarray
+    pairs: np.ndarray
+    log: list = field(default_factory=list)
+
+    @property
+    def n_regions(self) -> int:
+        return int(max(self.region.max(initial=-1), self.pairs[:, 0].max(initial=-1)) + 1)
+
+    def problem(self) -> FitProblem:
+        """The fitting problem of the current skeleton (all vertices)."""
+        return FitProblem(self.V, self.weights, self.joints, self.bones, self.bone, self.t)
+
+    def energy(self) -> float:
+        """E of the current skeleton with its own mapping."""
+        return float(energy(self.problem()))
+
+    def candidates(self, idx=None):
+        """Candidate bones (CSR) of all vertices, or of the vertices ``idx``."""
+        reg = self.region if idx is None else self.region[idx]
+        return candidates_from_pairs(self.pairs, reg, self.n_regions)
+
+    def apply_bone_map(self, bone_map) -> None:
+        """After an edit: rewrite the bone side of ``pairs`` (old bone -> new bone)."""
+        bone_map = np.asarray(bone_map, np.int64)
+        p = self.pairs.copy()
+        p[:, 1] = bone_map[p[:, 1]]
+        p = p[p[:, 1] >= 0]
+        self.pairs = np.unique(p, axis=0)
+        # a region whose bones all vanished maps to any bone the edit kept at its place:
+        # closest_on_bones falls back to every bone for a point without candidates
+
+    def remap(self) -> None:
+        """sigma of every vertex: closest point on the bones of its own region."""
+        self.bone, self.t, _ = closest_on_bones(self.V, self.joints, self.bones, self.candidates())
+
+    def record(self, stage: str, seconds: float, **extra) -> None:
+        self.log.append({"stage": stage, "energy": self.energy(), "joints": int(len(self.joints)),
+                         "bones": int(len(self.bones)), "seconds": float(seconds), **extra})
