@@ -33,49 +33,59 @@ def _solver_items():
 class GenerateSettings:
     """Parameters of one CurveSkel run (annotations only; inherited, never registered alone)."""
 
+    # -- the artist's settings (SkeletonParams.ARTIST) ---------------------------------------
     spacing: FloatProperty(
-        name="Contour Spacing", description="Distance between level-set contours, as a fraction of "
-        "each part's bounding-box diagonal. Smaller gives more joints",
-        default=_D.spacing, min=0.001, max=0.5, soft_min=0.005, soft_max=0.2, step=0.1, precision=3)
-    solver: EnumProperty(name="Solver", description="Optimisation method for the joints",
+        name="Detail Size", description="Smallest parts found, as a fraction of the object's "
+        "size (the distance between cross-sections): smaller finds fingers and ears and gives "
+        "more joints", default=_D.spacing, min=0.005, max=0.1, step=0.1, precision=3)
+    smoothness: FloatProperty(
+        name="Smoothness", description="How straight the bones run between branchings: 0 follows "
+        "the middle of the shape exactly, higher values smooth out wiggles",
+        default=_D.smoothness, min=0.0, max=10.0, soft_max=5.0, precision=2, step=10)
+    prune: FloatProperty(
+        name="Branch Pruning", description="Remove small branches: a branch reaching out of the "
+        "body by less than this many of its own thicknesses is a bump, not a limb (0 keeps all)",
+        default=_D.prune, min=0.0, max=5.0, precision=2, step=10)
+    max_joints: IntProperty(
+        name="Max Joints", description="Simplify the bones until the skeleton has at most this "
+        "many joints", default=_D.max_joints, min=3, max=1000)
+    # -- advanced (SkeletonParams' other fields: the command line's advanced group) ----------
+    solver: EnumProperty(name="Solver", description="Optimisation method of the final fit",
                          items=_solver_items(), default=_D.solver)
     max_iterations: IntProperty(name="Iterations", description="Maximum number of optimisation "
-                                "iterations (0 keeps the first approximation)",
-                                default=_D.max_iterations, min=0, soft_max=1000)
+                                "iterations of the final fit (0 keeps the centred curve)",
+                                default=_D.max_iterations, min=0, max=5000, soft_max=1000)
     tolerance: FloatProperty(name="Tolerance", description="Stop when one iteration lowers the "
                              "energy by less than this fraction of the initial energy",
                              default=_D.tolerance, min=1e-9, max=1.0, precision=6, step=0.01)
     seed: IntProperty(name="Seed", description="Seed of the pole search (results are reproducible)",
                       default=_D.seed, min=0)
-    # Advanced method parameters (the rest of SkeletonParams: the command line's flags).
     area_weighted: BoolProperty(name="Area Weights", description="Weight each vertex by its area "
                                 "(a surface integral instead of the paper's vertex sum)",
                                 default=_D.area_weighted)
     refit_mapping: BoolProperty(name="Re-fit Mapping", description="Re-fit each vertex's skeleton "
-                                "point between solver steps", default=_D.refit_mapping)
-    prune: FloatProperty(name="Prune", description="Remove leaf branches that explain less than "
-                         "this share of the energy (0 keeps all)", default=_D.prune, min=0.0,
-                         soft_max=1.0, precision=3, step=1)
-    simplify: FloatProperty(name="Simplify", description="Merge chain joints when the energy rises "
-                            "by less than this fraction (0 is off)", default=_D.simplify, min=0.0,
-                            soft_max=1.0, precision=3, step=1)
-    candidates: IntProperty(name="Candidates", description="First approximations tried (poles and "
-                            "spacings); the one of lowest energy is kept", default=_D.candidates,
-                            min=1, soft_max=8)
-    smoothness: FloatProperty(name="Smoothness", description="Keep chain joints between their "
-                              "neighbours (Levenberg-Marquardt only; 0 is off)",
-                              default=_D.smoothness, min=0.0, soft_max=1.0, precision=3, step=1)
+                                "point to the closest bone point between solver steps (lets bones "
+                                "fill the volume)", default=_D.refit_mapping)
+    centre: BoolProperty(name="Centre Curve", description="Centre the curve on the medial axis and "
+                         "simplify it (off: the paper's first approximation)", default=_D.centre)
+    centring: FloatProperty(name="Centring", description="How firmly joints stay at their centred "
+                            "place while the energy is fitted (0 lets the energy move them)",
+                            default=_D.centring, min=0.0, max=1000.0, soft_max=30.0, precision=2,
+                            step=10)
     containment: FloatProperty(name="Containment", description="Keep joints and their balls inside "
                                "the mesh (Levenberg-Marquardt only; 0 is off)",
-                               default=_D.containment, min=0.0, soft_max=100.0, precision=3, step=1)
-    refine: IntProperty(name="Refine Rounds", description="Rounds of splitting the bones that "
-                        "leave the mesh and re-solving; joints still outside are then pulled in "
-                        "(0 is off)", default=_D.refine, min=0, soft_max=10)
-    max_joints: IntProperty(name="Max Joints", description="No bone is split by the refinement "
-                            "beyond this many joints", default=_D.max_joints, min=2, soft_max=1000)
-    max_fit_points: IntProperty(name="Fit Points", description="Above this many vertices the solver "
-                                "fits an area-weighted random subset of this size (0 uses all)",
+                               default=_D.containment, min=0.0, max=1000.0, soft_max=100.0,
+                               precision=3, step=1)
+    simplify: FloatProperty(name="Simplify", description="Merge chain joints while the chain stays "
+                            "within this fraction of the local radius (0 is off)",
+                            default=_D.simplify, min=0.0, max=5.0, precision=3, step=1)
+    max_fit_points: IntProperty(name="Fit Points", description="Above this many vertices the fit "
+                                "uses an area-weighted random subset of this size (0 uses all)",
                                 default=_D.max_fit_points, min=0, soft_max=500000)
+    min_component_area: FloatProperty(name="Min Part Area", description="Leave out loose parts "
+                                      "with less than this share of the total area (scan debris; "
+                                      "0 keeps all)", default=_D.min_component_area, min=0.0,
+                                      max=0.99, precision=4, step=0.1)
     make_armature: BoolProperty(name="Armature", description="Create an armature from the skeleton",
                                 default=True)
     make_silhouette: BoolProperty(name="Silhouette", description="Create an edge mesh with a Skin "
@@ -92,10 +102,11 @@ class GenerateSettings:
                               "updates in interactive mode", default=2, min=1, soft_max=50)
 
 
-#: Properties that are parameters of the core: every SkeletonParams field, main ones first.
-PARAM_NAMES = ("spacing", "solver", "max_iterations", "tolerance", "seed")
-ADVANCED_NAMES = ("area_weighted", "refit_mapping", "prune", "simplify", "candidates",
-                  "smoothness", "containment", "refine", "max_joints", "max_fit_points")
+#: Properties that are parameters of the core: every SkeletonParams field, the artist's first.
+PARAM_NAMES = SkeletonParams.ARTIST
+ADVANCED_NAMES = ("solver", "max_iterations", "tolerance", "seed", "area_weighted",
+                  "refit_mapping", "centre", "centring", "containment", "simplify",
+                  "max_fit_points", "min_component_area")
 #: Properties of the Blender side of a run.
 OPTION_NAMES = ("make_armature", "make_silhouette", "silhouette_in_render", "bind", "interactive",
                 "update_every")
@@ -135,9 +146,13 @@ def draw_settings(layout, data, *, advanced: bool) -> None:
     for name in PARAM_NAMES:
         col.prop(data, name)
     if advanced:
-        col = layout.column(heading="Advanced")
-        for name in ADVANCED_NAMES:
-            col.prop(data, name)
+        # collapsed by default: solver internals are not an artist's first concern
+        header, body = layout.panel("CURVESKEL_adjust_advanced", default_closed=True)
+        header.label(text="Advanced")
+        if body is not None:
+            col = body.column()
+            for name in ADVANCED_NAMES:
+                col.prop(data, name)
     col = layout.column(heading="Create")
     for name in ("make_armature", "make_silhouette", "silhouette_in_render", "bind"):
         col.prop(data, name)

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from meshes import capsule
+from curveskel_addon.core.params import SkeletonParams
 
 ROOT = Path(__file__).resolve().parents[2]
 PLATFORMS = {"windows-x64", "macos-x64", "macos-arm64", "linux-x64"}
@@ -175,7 +176,7 @@ def test_install_and_run_from_installed_copy(built_zip, tmp_path):
     assert out["install"] == ["FINISHED"] and out["enabled"]
     assert out["operator_module"].startswith("bl_ext.user_default.curveskel")
     assert not out["source_tree_imported"]
-    assert out["pref_spacing"] == pytest.approx(0.04)
+    assert out["pref_spacing"] == pytest.approx(SkeletonParams().spacing)
     assert out["result"] == ["FINISHED"]
     assert out["objects"] == ["Capsule", "Capsule.silhouette", "Capsule.skeleton"]
     assert out["bones"] == out["edges"] and out["bones"] >= 1
