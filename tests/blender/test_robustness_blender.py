@@ -1,0 +1,248 @@
+"""Issue 12 in Blender: the operator on inverted normals and slivers, the interactive (modal)
+operator leaking nothing when anything fails, and the command line's Blender outputs
+(--blend/--render/--glb) never losing a file, with Ctrl-C while bpy loads giving a clean exit.
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+import types
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+from meshes import capsule
+
+from curveskel_addon import results
+
+ROOT = Path(__file__).resolve().parents[2]
+CLI = ROOT / "scripts" / "skeletonize.py"
+CAPSULE = capsule(n_around=16, n_body=20)
+
+
+def _joints(name):
+    """Joint positions and radii of the result of mesh ``name`` (from its silhouette)."""
+    sil = results.find_result(name)["silhouette"]
+    me = sil.data
+    co = np.empty(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    return co.reshape(-1, 3)
+
+
+def _generate(make_mesh, name, V, F):
+    make_mesh(name, V, F)
+    assert bpy.ops.curveskel.generate() == {'FINISHED'}
+    return _joints(name)
+
+
+# -- the operator on repairable meshes: the clean mesh's skeleton ---------------------------------
+def _inverted():
+    V, F = CAPSULE
+    return V, F[:, ::-1].copy()
+
+
+def _sliver():
+    V, F = CAPSULE
+    a, b = F[0, 0], F[0, 1]
+    return np.vstack([V, (V[a] + V[b]) / 2]), np.vstack([F, [[a, b, len(V)]]])
+
+
+@pytest.mark.parametrize("make", [_inverted, _sliver], ids=["inverted normals", "zero-area sliver"])
+def test_operator_gives_the_clean_meshes_skeleton(make_mesh, make):
+    ref = _generate(make_mesh, "Clean", *CAPSULE)
+    got = _generate(make_mesh, "Damaged", *make())
+    np.testing.assert_allclose(got, ref, atol=1e-6)
+
+
+# -- the interactive operator: whatever fails, nothing is left behind -----------------------------
+class _WindowManager:
+    """Timers never fire in background mode: the test delivers TIMER events itself."""
+
+    def __init__(self, real):
+        self.real, self.timers, self.handlers, self.progress = real, [], [], []
+
+    def event_timer_add(self, step, window=None):
+        self.timers.append(object())
+        return self.timers[-1]
+
+    def event_timer_remove(self, timer):
+        self.timers.remove(timer)
+
+    def modal_handler_add(self, op):
+        self.handlers.append(op)
+        return True
+
+    def progress_begin(self, lo, hi):
+        self.progress.append("begin")
+
+    def progress_update(self, value):
+        pass
+
+    def progress_end(self):
+        self.progress.append("end")
+
+
+class _Area:
+    def __init__(self):
+        self.header = None
+
+    def header_text_set(self, text):
+        self.header = text
+
+
+class _Context:
+    def __init__(self):
+        self.window_manager = _WindowManager(bpy.context.window_manager)
+        self.window = bpy.context.window
+        self.area = _Area()
+
+    def __getattr__(self, name):
+        return getattr(bpy.context, name)
+
+
+def _modal_operator(**props):
+    """The operator's own methods on a plain object holding its properties."""
+    from curveskel_addon.ops_generate import CURVESKEL_OT_generate
+    from curveskel_addon.properties import settings_dict
+
+    op = types.SimpleNamespace(**{**settings_dict(bpy.context.scene.curveskel), **props}, reports=[])
+    op.report = lambda kind, msg: op.reports.append((set(kind), msg))
+    for name in ("_modal_start", "modal", "_modal_end", "_modal_cleanup", "_status", "_checked_source",
+                 "_finish"):
+        setattr(op, name, types.MethodType(getattr(CURVESKEL_OT_generate, name), op))
+    return op
+
+
+def _boom(*args, **kwargs):
+    raise ZeroDivisionError("a bug")
+
+
+def _event(kind, value='NOTHING'):
+    return types.SimpleNamespace(type=kind, value=value)
+
+
+MODAL_FAILURES = {
+    "a bug while stepping": ("advance", 'TIMER'),
+    "a bug when Esc stops": ("stop", 'ESC'),
+    "Ctrl-C while stepping": ("advance-interrupt", 'TIMER'),
+}
+
+
+@pytest.mark.parametrize("name", list(MODAL_FAILURES))
+def test_modal_operator_cleans_up_on_any_exception(make_mesh, monkeypatch, name):
+    from curveskel_addon import ops_generate
+
+    what, event = MODAL_FAILURES[name]
+    make_mesh("Cylinder", *CAPSULE)
+    ctx, op = _Context(), _modal_operator(interactive=True, update_every=1)
+    assert op._modal_start(ctx) == {'RUNNING_MODAL'}
+    assert len(ctx.window_manager.timers) == 1 and ctx.area.header is not None
+    assert results.find_result("Cylinder")["silhouette"] is not None        # the live preview
+    assert op.modal(ctx, _event('TIMER')) == {'RUNNING_MODAL'}
+    if what == "advance-interrupt":
+        def interrupt(*a, **k):
+            raise KeyboardInterrupt
+        monkeypatch.setattr(ops_generate.LiveRun, "advance", interrupt)
+    else:
+        monkeypatch.setattr(ops_generate.LiveRun, what, _boom)
+    assert op.modal(ctx, _event(event, 'PRESS')) == {'CANCELLED'}
+    assert ctx.window_manager.timers == []                                  # timer removed
+    assert ctx.window_manager.progress[-1] == "end"                         # progress ended
+    assert ctx.area.header is None                                          # header text cleared
+    assert not any(o.name.startswith("Cylinder.") for o in bpy.data.objects)  # no preview left
+    kinds, msg = op.reports[-1]
+    if what == "advance-interrupt":
+        assert "interrupted" in msg
+    else:
+        assert kinds == {'ERROR'} and "internal error (ZeroDivisionError: a bug)" in msg
+
+
+def test_modal_start_failing_after_the_preview_leaves_nothing(make_mesh, monkeypatch):
+    make_mesh("Cylinder", *CAPSULE)
+    ctx, op = _Context(), _modal_operator(interactive=True, update_every=1)
+    monkeypatch.setattr(ctx.window_manager, "modal_handler_add", _boom)
+    assert op._modal_start(ctx) == {'CANCELLED'}
+    assert ctx.window_manager.timers == [] and ctx.area.header is None
+    assert not any(o.name.startswith("Cylinder.") for o in bpy.data.objects)
+    assert "internal error" in op.reports[-1][1]
+
+
+def test_modal_operator_on_inverted_normals_matches_the_clean_mesh(make_mesh):
+    ref = _generate(make_mesh, "Clean", *CAPSULE)
+    make_mesh("Inverted", *_inverted())
+    ctx, op = _Context(), _modal_operator(interactive=True, update_every=50)
+    assert op._modal_start(ctx) == {'RUNNING_MODAL'}
+    for _ in range(1000):
+        if op.modal(ctx, _event('TIMER')) == {'FINISHED'}:
+            break
+    np.testing.assert_allclose(_joints("Inverted"), ref, atol=1e-6)
+
+
+# -- the command line's Blender outputs -----------------------------------------------------------
+def run_cli(*args, limit=None):
+    pre = None
+    if limit is not None:
+        import resource
+
+        def pre():                     # a file-size limit: a disk that fills up at `limit` bytes
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+            resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    return subprocess.run([sys.executable, str(CLI), *map(str, args)], capture_output=True,
+                          text=True, timeout=600, preexec_fn=pre)
+
+
+@pytest.fixture(scope="module")
+def mesh_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cli") / "capsule.obj"
+    V, F = capsule(n_around=12, n_body=12)
+    with open(path, "w") as fh:
+        fh.writelines(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in V)
+        fh.writelines(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in F)
+    return path
+
+
+def test_blend_over_an_existing_file_leaves_no_backup_unless_asked(mesh_file, tmp_path):
+    out = tmp_path / "scene.blend"
+    out.write_bytes(b"old")
+    r = run_cli(mesh_file, "--blend", out)
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.blend"]
+    assert out.read_bytes()[:4] != b"old"
+    r = run_cli(mesh_file, "--blend", out, "--blend-backup")
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.blend", "scene.blend1"]
+
+
+@pytest.mark.parametrize("flag, name", [("--blend", "scene.blend"), ("--glb", "rig.glb"),
+                                        ("--render", "preview.png")])
+def test_a_full_disk_keeps_the_old_output_and_exits_non_zero(mesh_file, tmp_path, flag, name):
+    out = tmp_path / name
+    out.write_bytes(b"old")
+    r = run_cli(mesh_file, flag, out, limit=20000)     # every one of them is larger than that
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert f"could not write {flag} {out}" in r.stderr and "previous file is kept" in r.stderr
+    assert f"wrote       {out}" not in r.stdout
+    assert out.read_bytes() == b"old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]          # no temporary left
+
+
+@pytest.mark.parametrize("delay", [0.05, 0.6])
+def test_ctrl_c_while_bpy_loads_exits_130_cleanly(mesh_file, tmp_path, delay):
+    out = tmp_path / "scene.blend"
+    p = subprocess.Popen([sys.executable, str(CLI), str(mesh_file), "--blend", str(out)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    for line in p.stdout:
+        if "loading Blender" in line:
+            time.sleep(delay)
+            p.send_signal(signal.SIGINT)
+            break
+    _, err = p.communicate(timeout=300)
+    if p.returncode == 0:
+        pytest.skip("the run finished before the interrupt arrived")
+    assert p.returncode == 130, err
+    assert err.strip() == "interrupted"
+    assert list(tmp_path.iterdir()) == []                                  # no partial file
