@@ -32,27 +32,34 @@ from curveskel_addon.core import SOLVERS, CurveSkelError, SkeletonParams, skelet
 from curveskel_addon.core.mesh_io import read_mesh  # noqa: E402
 
 _HELP = {
-    "spacing": "contour spacing as a fraction of each component's bounding-box diagonal "
-               "(smaller = more joints; default %(default)s)",
-    "solver": "optimiser: 'paper' = gradient descent with exact line search (eqs. 28-31), "
-              "'lm' = Levenberg-Marquardt, converges (default %(default)s)",
+    # the artist's settings (the Blender panel shows these)
+    "spacing": "detail: distance between cross-sections as a fraction of each part's size "
+               "(smaller finds smaller parts, more joints; default %(default)s)",
+    "smoothness": "smoothness of the curve along chains: 0 follows the medial axis exactly, "
+                  "10 is nearly straight between branchings (default %(default)s)",
+    "prune": "remove a leaf branch reaching out of its junction by less than this many of its "
+             "own radii: a bump, not a part (0 = keep all; default %(default)s)",
+    "max_joints": "simplify chains until the skeleton has at most this many joints "
+                  "(0 = no limit; default %(default)s)",
+    # advanced
+    "solver": "optimiser of the final fit: 'paper' = gradient descent with exact line search "
+              "(eqs. 28-31), 'lm' = Levenberg-Marquardt, converges (default %(default)s)",
     "max_iterations": "upper bound on optimiser iterations (default %(default)s)",
     "tolerance": "stop when an iteration lowers E by less than TOLERANCE * E0 (paper: 1e-3; default %(default)s)",
     "seed": "seed of the random first vertex of the pole search (default %(default)s)",
     "area_weighted": "weight vertices by their area: the surface integral of eq. 8 instead of a vertex sum",
-    "refit_mapping": "re-fit each vertex's skeleton point between solver steps",
-    "prune": "remove leaf branches that explain less than this share of E (0 = keep all; default %(default)s)",
-    "simplify": "merge chain joints when E rises by less than this fraction (0 = off; default %(default)s)",
-    "candidates": "first approximations tried (poles/spacings); the lowest E wins (default %(default)s)",
-    "smoothness": "weight of a term keeping chain joints between their neighbours (lm only; "
-                  "0 = off; default %(default)s)",
+    "refit_mapping": "re-fit each vertex's skeleton point to the closest bone point between solver "
+                     "steps (lets bones fill the volume; off by default)",
+    "centre": "centre the curve on the medial axis and simplify it (off = the paper's first "
+              "approximation, as with --paper)",
+    "centring": "weight holding each joint to its centred place while E is fitted "
+                "(0 = free; default %(default)s)",
     "containment": "weight of a term keeping joints and points along the bones inside the mesh "
                    "with their balls (lm only; 0 = off; default %(default)s)",
+    "simplify": "merge chain joints while the chain stays within this fraction of the local "
+                "radius (0 = off; default %(default)s)",
     "max_fit_points": "above this many vertices fit an area-weighted random subset of this size "
                       "(0 = all; default %(default)s)",
-    "refine": "rounds of splitting bones that leave the mesh and re-solving; then outside "
-              "joints are pulled in and bones split without a solve (0 = off; default %(default)s)",
-    "max_joints": "joint budget of the refinement (default %(default)s)",
     "min_component_area": "drop connected parts with less than this share of the total area "
                           "(scan debris; their vertices follow the nearest kept part; "
                           "0 = keep all; default %(default)s)",
@@ -91,9 +98,11 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--blend-backup", action="store_true",
                    help="keep the .blend being replaced as OUT.blend1 (Blender's backup); "
                         "by default no backup file is left")
-    g = ap.add_argument_group("method parameters")
+    g_art = ap.add_argument_group("skeleton settings (the Blender panel's)")
+    g_adv = ap.add_argument_group("advanced method parameters (the Blender panel's Advanced)")
     defaults = SkeletonParams()
     for f in fields(SkeletonParams):
+        g = g_art if f.name in SkeletonParams.ARTIST else g_adv
         flag = "--" + f.name.replace("_", "-")
         val = getattr(defaults, f.name)
         if isinstance(val, bool):
