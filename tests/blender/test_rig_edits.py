@@ -20,7 +20,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 import pytest
-from mathutils import Matrix
+from mathutils import Matrix, Quaternion
 
 import meshes
 from curveskel_addon import results
@@ -298,9 +298,47 @@ def test_symmetric_mesh_gets_mirrored_left_right_pairs():
     assert spine
     for b in spine:
         assert abs(b.head_local.x) < 1e-6 * diag and abs(b.tail_local.x) < 1e-6 * diag, b.name
-    # posing a left bone with the mirrored pose of its right twin moves mirrored vertices alike
-    ob_w = weight_matrix(ob, [left[0], bpy.utils.flip_name(left[0])])
-    assert ob_w[:, 0].max() > 0.5 and ob_w[:, 1].max() > 0.5
+    # pose flipping: a pose of a .L bone pasted flipped onto its .R twin deforms the mesh
+    # mirrored wherever the vertices belong to paired bones only
+    from scipy.spatial import cKDTree
+
+    paired = [n for n in names if bpy.utils.flip_name(n) != n]
+    Wp = weight_matrix(ob, paired)
+    _, mirror_of = cKDTree(V).query(V @ S)
+    assert np.abs(V[mirror_of] - V @ S).max() < 1e-6 * diag        # the mesh is symmetric
+    flip = [paired.index(bpy.utils.flip_name(n)) for n in paired]
+    on_pairs = Wp.sum(axis=1) > 1 - 1e-6
+    mirrored = np.abs(Wp[mirror_of][:, flip] - Wp).max(axis=1) < 1e-6
+    # the weights themselves are mirrored on the arms (away from the junction, where an
+    # asymmetric skeleton may branch differently left and right)
+    assert mirrored[on_pairs & (np.abs(V[:, 0]) > 1.5)].all()
+    both = on_pairs & mirrored
+    assert both.sum() > 100
+    first = min(left, key=lambda nm: bones[nm].head_local.x)         # the chain's first .L bone
+    vl = bpy.context.view_layer
+    vl.objects.active = arm
+    bpy.ops.object.mode_set(mode='POSE')
+
+    def select(pb, state):
+        (pb if hasattr(pb, "select") else pb.bone).select = state   # 5.0: on the pose bone
+
+    for pb in arm.pose.bones:
+        select(pb, False)
+    pl, pr = arm.pose.bones[first], arm.pose.bones[bpy.utils.flip_name(first)]
+    pl.rotation_mode = pr.rotation_mode = 'QUATERNION'
+    pl.rotation_quaternion = Quaternion((0.3, 0.5, 0.2), 0.8)
+    select(pl, True)
+    arm.data.bones.active = pl.bone
+    assert bpy.ops.pose.copy() == {'FINISHED'}
+    select(pl, False)
+    select(pr, True)
+    arm.data.bones.active = pr.bone
+    assert bpy.ops.pose.paste(flipped=True) == {'FINISHED'}
+    bpy.ops.object.mode_set(mode='OBJECT')
+    P = evaluated(ob)
+    moved = np.linalg.norm(P - V, axis=1)
+    assert moved[both].max() > 0.2 * diag / 6
+    assert np.linalg.norm(P[mirror_of][both] @ S - P[both], axis=1).max() < 1e-5 * diag
 
 
 # -- UI --------------------------------------------------------------------------------------------
