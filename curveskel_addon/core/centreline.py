@@ -152,7 +152,7 @@ def chain_smoothness_rows(bones, J):
 
 
 def fit_centreline(M, w, joints, bones, cand, *, smooth=1.0, anchor=None, anchor_weight=0.0,
-                   rounds=6, map_points=None):
+                   rounds=6, map_points=None, depth=None, depth_gain=0.25):
     """Joint positions of the elastic curve through the medial points (module docstring).
 
     Parameters
@@ -172,6 +172,14 @@ def fit_centreline(M, w, joints, bones, cand, *, smooth=1.0, anchor=None, anchor
         Positions the joints are held towards with ``anchor_weight`` (relative, per joint).
     rounds : int
         Alternations of closest-point mapping and linear solve.
+    map_points : (n, 3) float, optional
+        Points mapped to the bones instead of ``M`` (the vertices whose medial points M are).
+    depth : callable (k, 3) -> (k,), optional
+        Distance of points from the surface. When given, each joint goes to the centroid of
+        the medial points it explains only if that lies deeper than where the joint is (by
+        ``depth_gain`` of its depth), else it stays: on a tube the centroid is on the axis,
+        deeper than an off-axis contour centre; on a plate every point of the mid-sheet is
+        medial and the contour's own centre is kept.
 
     Returns
     -------
@@ -195,6 +203,15 @@ def fit_centreline(M, w, joints, bones, cand, *, smooth=1.0, anchor=None, anchor
         floor = 0.05 * float(np.median(mass[mass > 0])) if np.any(mass > 0) else 1.0
         mass = np.maximum(mass, floor)
         lam = smooth * mass[chain]
+        if depth is not None:
+            has = np.asarray(AtA.sum(axis=1)).ravel() > 0
+            B = np.where(has[:, None], rhs / np.maximum(np.asarray(AtA.sum(axis=1)), 1e-300), X)
+            deeper = depth(B) > (1.0 + depth_gain) * depth(X)
+            target = np.where((deeper & has)[:, None], B, X)
+            H = sp.diags(mass) + S.T @ sp.diags(lam) @ S
+            rhs = mass[:, None] * target
+            X = np.column_stack([spsolve(H.tocsc(), rhs[:, k]) for k in range(3)])
+            continue
         H = AtA + S.T @ sp.diags(lam) @ S
         if anchor is not None and anchor_weight > 0:
             aw = anchor_weight * mass
@@ -269,6 +286,12 @@ def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0):
     return idx, M, rho
 
 
+#: Move a joint to the medial centroid only where that is deeper inside (see fit_centreline).
+DEPTH_SELECT = True
+#: Rounds of the elastic fit (closest point, then linear solve).
+CENTRE_ROUNDS = 1
+#: Map the vertices (True) or their medial points (False) to the bones in the closest-point step.
+MAP_VERTICES = True
 #: Medial samples used for centring (area-weighted vertices; their average is what counts).
 MEDIAL_SAMPLES = 3000
 #: Bones of branching regions are split into pieces of this many contour spacings before
@@ -295,6 +318,7 @@ def centre_stage(state, spacing_abs, *, smooth, seed=0):
     V, F = state.V, state.F
     idx, M, rho = medial_samples(V, F, state.joints, state.bones, state.bone, state.t,
                                  MEDIAL_SAMPLES, seed=seed)
+    state.medial = (M, rho)
     # contract the tiny bones (direction noise), then split the bones of branching regions
     joints, bones, bmap = collapse_short_bones(state.joints, state.bones,
                                                COLLAPSE_SPACINGS * spacing_abs)
@@ -316,8 +340,15 @@ def centre_stage(state, spacing_abs, *, smooth, seed=0):
     reg = np.repeat(state.pairs[:, 0], cnt)
     local = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
     state.pairs = np.unique(np.stack([reg, o[np.repeat(st[state.pairs[:, 1]], cnt) + local]], 1), axis=0)
+    depth = None
+    if DEPTH_SELECT:
+        from scipy.spatial import cKDTree
+        tree = cKDTree(V)
+        def depth(P):
+            return tree.query(P)[0]
     X, _, _ = fit_centreline(M, rho, joints, bones, state.candidates(idx), smooth=smooth,
-                             rounds=1, map_points=V[idx])
+                             rounds=CENTRE_ROUNDS, map_points=V[idx] if MAP_VERTICES else None,
+                             depth=depth)
     state.joints = np.column_stack([X, joints[:, 3]])
     state.remap()
     state.joints[:, 3] = fit_radii(V, state.weights, X, bones, state.bone, state.t)

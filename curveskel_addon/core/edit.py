@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["chains", "merge_chains", "collapse_short_bones", "prune_leaves", "compact", "chain_turns", "remove_sharp_turns", "edit_stage",
+__all__ = ["chains", "merge_chains", "collapse_short_bones", "prune_leaves", "compact", "chain_turns", "remove_sharp_turns", "edit_stage", "contain_stage",
            "EDIT_CONSTANTS"]
 
 #: The edit stage's constants (pipeline defaults), named once.
@@ -46,6 +46,9 @@ EDIT_CONSTANTS = {
     "sharp_radius_fraction": 1.0,
     # the joint budget: the merge tolerance grows by this factor until it is met
     "budget_growth": 1.5,
+    # containment repair: points tested along each bone, and rounds of splitting
+    "contain_samples": 10,
+    "contain_rounds": 2,
 }
 
 
@@ -430,3 +433,105 @@ def edit_stage(state, *, prune, simplify, max_joints, diag):
     out["budget_rounds"] = rounds
     out["joints_out"] = int(len(state.joints))
     return out
+
+
+def _outside_per_bone(inside_test, joints, bones, k):
+    """(B, k) bool: sample u = (i + 1/2) / k along every bone is outside the mesh."""
+    u = (np.arange(k) + 0.5) / k
+    xi, xj = joints[bones[:, 0], :3], joints[bones[:, 1], :3]
+    P = xi[:, None, :] + u[None, :, None] * (xj - xi)[:, None, :]
+    return ~inside_test(P.reshape(-1, 3)).reshape(len(bones), k), u
+
+
+def contain_stage(state, inside_test, medial, *, diag):
+    """Keep the bones inside the mesh (in place): trim leaf bones whose tip lies outside,
+    then split bones that leave the mesh at the medial point nearest to where they leave.
+
+    Acceptance rule (the one every edit obeys): a change is kept only if fewer bone samples
+    are outside and the skeleton gains no zig-zag and no fold (:func:`.quality.curve_measures`).
+
+    Parameters
+    ----------
+    state : PipelineState
+    inside_test : callable (k, 3) -> (k,) bool (exact: :class:`.quality.InsideTest`)
+    medial : (M (m, 3), rho (m,)) medial points and radii of surface samples
+    diag : float, the size (D) for the fold measure
+
+    Returns
+    -------
+    dict: outside fraction before and after, trimmed tips, splits
+    """
+    from scipy.spatial import cKDTree
+
+    from .quality import curve_measures
+    C = EDIT_CONSTANTS
+    k = C["contain_samples"]
+    out_b, u = _outside_per_bone(inside_test, state.joints, state.bones, k)
+    log = {"outside_before": float(out_b.mean()) if out_b.size else 0.0, "trimmed": 0, "split": 0}
+    if not out_b.any():
+        log["outside_after"] = log["outside_before"]
+        return log
+    joints = state.joints.copy()
+    bones = state.bones
+    deg = np.bincount(bones.ravel(), minlength=len(joints))
+    # 1. tips: slide an outside leaf joint towards its neighbour to the last inside sample
+    for b in np.flatnonzero(out_b.any(axis=1)):
+        i, j = bones[b]
+        leaf, other, row = (i, j, out_b[b][::-1]) if deg[i] == 1 else (j, i, out_b[b]) \
+            if deg[j] == 1 else (None, None, None)
+        if leaf is None:
+            continue
+        # samples ordered from `other` (u ~ 0) to `leaf` (u ~ 1) in `row`
+        inside_run = np.flatnonzero(row)
+        if inside_run.size == 0 or inside_run[0] == 0:
+            continue          # the bone leaves near its root too: a split's job
+        last_in = inside_run[0] - 1
+        uu = (last_in + 0.5) / k
+        joints[leaf, :3] = joints[other, :3] + uu * (joints[leaf, :3] - joints[other, :3])
+        log["trimmed"] += 1
+    before = curve_measures(state.joints, bones, diag)
+    trial_out, _ = _outside_per_bone(inside_test, joints, bones, k)
+    after = curve_measures(joints, bones, diag)
+    if trial_out.sum() < out_b.sum() and after["zigzag"] <= before["zigzag"] + 1e-12 \
+            and after["fold_pairs"] <= before["fold_pairs"]:
+        state.joints = joints
+        out_b = trial_out
+    else:
+        log["trimmed"] = 0
+    # 2. bones leaving the mesh: split at the medial point nearest their middle outside sample
+    M, rho = medial
+    tree = cKDTree(M) if len(M) else None
+    for _ in range(C["contain_rounds"]):
+        bad = np.flatnonzero(out_b.any(axis=1))
+        if bad.size == 0 or tree is None:
+            break
+        X = state.joints
+        mid_s = np.array([np.flatnonzero(out_b[b])[len(np.flatnonzero(out_b[b])) // 2] for b in bad])
+        P = X[bones[bad, 0], :3] + u[mid_s, None] * (X[bones[bad, 1], :3] - X[bones[bad, 0], :3])
+        _, nn = tree.query(P)
+        J = len(X)
+        new_j = np.column_stack([M[nn], rho[nn]])
+        nb = bones.copy()
+        nb[bad, 1] = J + np.arange(len(bad))
+        extra = np.stack([J + np.arange(len(bad)), bones[bad, 1]], axis=1)
+        trial_j = np.concatenate([X, new_j])
+        trial_b = np.concatenate([nb, extra])
+        trial_out, _ = _outside_per_bone(inside_test, trial_j, trial_b, k)
+        before = curve_measures(X, bones, diag)
+        after = curve_measures(trial_j, trial_b, diag)
+        if not (trial_out.sum() < out_b.sum() and after["fold_pairs"] <= before["fold_pairs"]
+                and after["zigzag"] <= max(before["zigzag"], 0.0) + 0.05):
+            break
+        # a split piece explains what its bone explained
+        pieces = np.concatenate([np.arange(len(bones)), bad])
+        owner_pairs = state.pairs
+        add = owner_pairs[np.isin(owner_pairs[:, 1], bad)].copy()
+        add[:, 1] = len(bones) + np.searchsorted(bad, add[:, 1])
+        state.pairs = np.unique(np.concatenate([owner_pairs, add]), axis=0)
+        state.joints, state.bones = trial_j, trial_b
+        bones, out_b = trial_b, trial_out
+        log["split"] += int(len(bad))
+        del pieces
+    state.remap()
+    log["outside_after"] = float(out_b.mean())
+    return log

@@ -83,7 +83,7 @@ class SkeletonParams:
 
     spacing: float = 0.02
     smoothness: float = 0.5
-    prune: float = 1.0
+    prune: float = 0.5
     max_joints: int = 150
     solver: str = "lm"
     max_iterations: int = 30

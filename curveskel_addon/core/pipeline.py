@@ -27,13 +27,14 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .centreline import centre_stage
-from .edit import edit_stage
+from .edit import contain_stage, edit_stage
 from .errors import CurveSkelError
 from .mapping import closest_on_bones
 from .mesh_graph import components
 from .mesh_input import clean_mesh
 from .params import SkeletonParams, check_params
 from .problem import FitProblem, SolverState
+from .quality import InsideTest
 from .reeb import first_approximation
 from .skeleton import Skeleton
 from .solvers import solve_steps
@@ -214,6 +215,12 @@ class SkeletonRun:
             st.bone, st.t = self._mapping(st.joints, s)
         st.record("fit", self.timings.get("optimise", 0.0) + time.perf_counter() - t0,
                   iterations=int(s.iteration))
+        if self.params.centre and st.medial is not None:
+            t0 = time.perf_counter()
+            with self._timed("contain"):
+                diag = float(np.linalg.norm(np.ptp(st.V, axis=0)))
+                self.contain_log = contain_stage(st, InsideTest(st.V, st.F), st.medial, diag=diag)
+            st.record("contain", time.perf_counter() - t0)
         # E over the fit (on the fitted points), its last value replaced by the E of what is
         # returned (all vertices, radii flipped, every vertex mapped)
         E = (list(self.energy[:-1]) if self.fit_subset is None else []) + [st.log[-1]["energy"]]
@@ -249,6 +256,8 @@ class SkeletonRun:
                 "stages": [dict(x) for x in self.state.log]}
         if getattr(self, "edit_log", None) is not None:
             meta["edit"] = self.edit_log
+        if getattr(self, "contain_log", None) is not None:
+            meta["contain"] = self.contain_log
         return meta
 
 

@@ -78,6 +78,7 @@ class PipelineState:
     region: np.ndarray
     pairs: np.ndarray
     log: list = field(default_factory=list)
+    medial: tuple | None = None     # (M (k, 3), rho (k,)): medial points of surface samples
 
     @property
     def n_regions(self) -> int:
