@@ -137,3 +137,145 @@ def two_capsules():
     V2, F2 = capsule(length=3.0)
     V2 = V2 + [5.0, 0, 0]
     return np.concatenate([V1, V2]), np.concatenate([F1, F2 + len(V1)])
+
+
+# -- shapes with a known curve skeleton (issue 10), and their analytic curves --------------------
+# A curve is returned as (X (k, 3) float, bones (b, 2) int): any form
+# ``curveskel_addon.core.quality.curve_distances`` takes.
+
+__all__ += ["plate_with_holes", "box_bar", "bent_tube", "polyline", "union_curves",
+            "capsule_axis", "torus_axis", "bent_capsule_axis", "star_axes", "box_bar_axis",
+            "bent_tube_axis", "plate_hole_rings", "PLATE", "BAR", "BENT_TUBE"]
+
+#: The plate with three holes: size (x, y, z), hole radius, hole centres on the x axis.
+PLATE = {"size": (6.0, 2.0, 0.4), "hole_radius": 0.5, "hole_x": (-2.0, 0.0, 2.0)}
+#: The box-section bar: size (x, y, z), centred on the origin, axis along x.
+BAR = {"size": (8.0, 1.0, 1.0)}
+#: The bent tube: a quarter circle of radius ``bend`` in the xy-plane around the origin.
+BENT_TUBE = {"bend": 3.0, "radius": 0.5, "angle": np.pi / 2}
+
+
+def plate_with_holes(size=PLATE["size"], hole_radius=PLATE["hole_radius"], hole_x=PLATE["hole_x"],
+                     n_hole: int = 48, edge: float = 0.15):
+    """A box ``size`` centred on the origin minus vertical cylinders (the holes, through the
+    plate along z) centred at ``(x, 0)`` for x in ``hole_x`` (manifold3d booleans), edges
+    refined to at most ``edge``. Genus ``len(hole_x)``. Returns (V, F)."""
+    import manifold3d as m3
+
+    plate = m3.Manifold.cube(list(size), center=True)
+    for x in hole_x:
+        plate = plate - m3.Manifold.cylinder(2 * size[2], hole_radius, hole_radius, n_hole,
+                                             True).translate([x, 0.0, 0.0])
+    return _to_arrays(plate.refine_to_length(edge))
+
+
+def box_bar(size=BAR["size"], edge: float = 0.15):
+    """A box of ``size`` centred on the origin (long axis x), every edge refined to at most
+    ``edge`` (a plain 12-triangle box has no vertices to fit). Returns (V, F)."""
+    import manifold3d as m3
+
+    return _to_arrays(m3.Manifold.cube(list(size), center=True).refine_to_length(edge))
+
+
+def bent_tube(bend=BENT_TUBE["bend"], radius=BENT_TUBE["radius"], angle=BENT_TUBE["angle"],
+              n: int = 40, n_around: int = 24):
+    """A tube of ``radius`` along the arc of radius ``bend`` around the z axis from angle 0 to
+    ``angle`` (in the xy-plane), hemispherical caps. Returns (V, F)."""
+    th = np.linspace(0.0, angle, n)
+    path = np.stack([bend * np.cos(th), bend * np.sin(th), 0 * th], 1)
+    return tube_along(path, radius, n_around)
+
+
+def polyline(P, closed: bool = False):
+    """The curve through points ``P`` (k, 3) in order (and back to the first if ``closed``)."""
+    P = np.asarray(P, float).reshape(-1, 3)
+    k = len(P)
+    bones = np.stack([np.arange(k - 1), np.arange(1, k)], 1)
+    if closed:
+        bones = np.vstack([bones, [[k - 1, 0]]])
+    return P, bones.astype(np.int64)
+
+
+def union_curves(*curves):
+    """One curve made of several (joints renumbered)."""
+    X, B, off = [], [], 0
+    for x, b in curves:
+        X.append(np.asarray(x, float))
+        B.append(np.asarray(b, np.int64) + off)
+        off += len(x)
+    return np.vstack(X), np.vstack(B)
+
+
+def capsule_axis(length: float = 6.0):
+    """:func:`capsule`'s axis: the segment between its cap centres."""
+    return polyline([[0.0, 0, 0], [0, 0, length]])
+
+
+def torus_axis(R: float = 3.0, n: int = 512):
+    """:func:`torus`'s core circle (radius R in the xy-plane)."""
+    u = 2 * np.pi * np.arange(n) / n
+    return polyline(np.stack([R * np.cos(u), R * np.sin(u), 0 * u], 1), closed=True)
+
+
+def bent_capsule_axis(arm: float = 4.0, n: int = 128):
+    """:func:`bent_capsule`'s axis: x from -arm to -1, a quarter circle of radius 1 around
+    (-1, 0, 1), z from 1 to arm."""
+    th = np.linspace(0, np.pi / 2, n)
+    corner = np.stack([-1 + np.sin(th), 0 * th, 1 - np.cos(th)], 1)
+    return polyline(np.vstack([[[-arm, 0, 0]], corner, [[0, 0, arm]]]))
+
+
+def star_axes(n_arms: int = 4, arm: float = 4.0):
+    """:func:`star`'s axes: a segment from the origin to each arm's tip centre."""
+    ang = 2 * np.pi * np.arange(n_arms) / n_arms
+    X = np.vstack([[0.0, 0, 0], np.stack([arm * np.cos(ang), arm * np.sin(ang), 0 * ang], 1)])
+    return X, np.stack([np.zeros(n_arms, np.int64), 1 + np.arange(n_arms)], 1)
+
+
+def bent_tube_axis(bend=BENT_TUBE["bend"], angle=BENT_TUBE["angle"], n: int = 512):
+    """:func:`bent_tube`'s axis: the arc itself (the caps' medial axis ends at their centres)."""
+    th = np.linspace(0, angle, n)
+    return polyline(np.stack([bend * np.cos(th), bend * np.sin(th), 0 * th], 1))
+
+
+def box_bar_axis(size=BAR["size"]):
+    """:func:`box_bar`'s curve skeleton: the long axis where the medial axis is a line, i.e.
+    up to half the (square) section's width from each end face (beyond it the medial axis
+    opens into the end faces' pyramids of sheets)."""
+    L, w = size[0], min(size[1], size[2])
+    return polyline([[-L / 2 + w / 2, 0, 0], [L / 2 - w / 2, 0, 0]])
+
+
+def plate_hole_rings(size=PLATE["size"], hole_radius=PLATE["hole_radius"], hole_x=PLATE["hole_x"],
+                     n: int = 720):
+    """The plate's curve skeleton: one loop around each hole in the mid-plane z = 0 through
+    the middle of the material.
+
+    Loop k at angle theta is the point ``c_k + s u(theta)`` equidistant from hole k's wall and
+    from the rest of the boundary (the plate's sides and the other holes): the medial axis of
+    the plate's section, without the branches into its four corners. Neighbouring loops share
+    the segment on the bisector between their holes (the rung ``x = (x_k + x_k+1) / 2``).
+    """
+    hx, hy = size[0] / 2, size[1] / 2
+    C = np.array([[x, 0.0] for x in hole_x])
+    th = 2 * np.pi * np.arange(n) / n
+    u = np.stack([np.cos(th), np.sin(th)], 1)
+    rings = []
+    for k, c in enumerate(C):
+        others = np.delete(C, k, axis=0)
+        with np.errstate(divide="ignore"):
+            sx = np.where(np.abs(u[:, 0]) > 1e-12, (hx - np.sign(u[:, 0]) * c[0]) / np.abs(u[:, 0]), np.inf)
+            sy = np.where(np.abs(u[:, 1]) > 1e-12, (hy - np.sign(u[:, 1]) * c[1]) / np.abs(u[:, 1]), np.inf)
+        lo, hi = np.full(n, float(hole_radius)), np.minimum(sx, sy)
+        for _ in range(60):        # bisection: (s - a) - distance to the rest grows with s
+            s = 0.5 * (lo + hi)
+            p = c + s[:, None] * u
+            rest = np.minimum(hx - np.abs(p[:, 0]), hy - np.abs(p[:, 1]))
+            if len(others):
+                rest = np.minimum(rest, (np.linalg.norm(p[:, None] - others[None], axis=2)
+                                         - hole_radius).min(axis=1))
+            inside = (s - hole_radius) < rest
+            lo, hi = np.where(inside, s, lo), np.where(inside, hi, s)
+        p = c + 0.5 * (lo + hi)[:, None] * u
+        rings.append(polyline(np.column_stack([p, np.zeros(n)]), closed=True))
+    return union_curves(*rings)

@@ -1,0 +1,391 @@
+"""Outcome tests of the rig-ready default pipeline (issue 10, item 5), default parameters.
+
+Every test asserts what a rigger sees -- the skeleton's topology, where its curve runs against
+an analytic curve skeleton, how it turns -- never how many passes a stage made: the method's
+constants may change, these outcomes may not. Distances are divided by the mesh's bounding-box
+diagonal D (:func:`quality.bbox_diagonal`); zig-zag and folds are :func:`quality.curve_measures`.
+
+Where the pipeline does not reach an issue-10 target today the test is marked
+``xfail(strict=True)`` with the value measured when it was written: it must start passing (and
+then fail as XPASS, so the mark is removed) once the method reaches the target.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+import pytest
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components, dijkstra
+
+from curveskel_addon.core.energy import energy
+from curveskel_addon.core.mesh_input import clean_mesh
+from curveskel_addon.core.params import SkeletonParams
+from curveskel_addon.core.pipeline import skeletonize
+from curveskel_addon.core.problem import FitProblem
+from curveskel_addon.core.quality import (bbox_diagonal, curve_distances, curve_measures, curve_points,
+                                          turn_angles)
+from curveskel_addon.core.vertex_area import vertex_areas
+from tests.meshes import (BAR, BENT_TUBE, PLATE, bent_capsule, bent_capsule_axis, bent_tube,
+                          bent_tube_axis, box_bar, box_bar_axis, capsule, capsule_axis,
+                          plate_hole_rings, plate_with_holes, star, star_axes, torus, torus_axis)
+
+#: shape -> (mesh, its analytic curve skeleton, independent cycles of that curve)
+SHAPES = {
+    "capsule": (capsule, capsule_axis, 0),
+    "torus": (torus, torus_axis, 1),
+    "bent_capsule": (bent_capsule, bent_capsule_axis, 0),
+    "star": (star, star_axes, 0),
+    "plate_with_holes": (plate_with_holes, plate_hole_rings, 3),
+    "box_bar": (box_bar, box_bar_axis, 0),
+    "bent_tube": (bent_tube, bent_tube_axis, 0),
+}
+
+#: issue 10: "the procedural shapes of tests/meshes.py within 0.005 D of their analytic curves
+#: both ways" (to_ref_mean and from_ref_mean)
+CURVE_TOL = 0.005
+#: issue 10's shape targets
+ZIGZAG_MAX = 0.15
+
+
+@lru_cache(maxsize=None)
+def _mesh(name):
+    V, F = SHAPES[name][0]()
+    V.setflags(write=False)
+    F.setflags(write=False)
+    return V, F
+
+
+@lru_cache(maxsize=None)
+def _skeleton(name, paper=False):
+    V, F = _mesh(name)
+    return skeletonize(V, F, SkeletonParams.paper() if paper else None)
+
+
+# -- graph helpers (independent of the core's own) -------------------------------------------------
+def _graph(n, bones):
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    return csr_matrix((np.ones(2 * len(bones)), (np.r_[bones[:, 0], bones[:, 1]],
+                                                 np.r_[bones[:, 1], bones[:, 0]])), shape=(n, n))
+
+
+def _topology(sk):
+    """(independent cycles B - J + C, components C, degree of every joint)."""
+    J, B = len(sk.joints), len(sk.bones)
+    C = connected_components(_graph(J, sk.bones), directed=False)[0]
+    return B - J + C, C, np.bincount(sk.bones.ravel(), minlength=J)
+
+
+def _min_cycle_basis(X, bones):
+    """A minimum-length cycle basis (Horton): the shortest independent cycles, each as the
+    list of its joints in order around it."""
+    X = np.asarray(X, float)[:, :3]
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    J, B = len(X), len(bones)
+    w = np.linalg.norm(X[bones[:, 0]] - X[bones[:, 1]], axis=1) + 1e-12
+    G = csr_matrix((np.r_[w, w], (np.r_[bones[:, 0], bones[:, 1]], np.r_[bones[:, 1], bones[:, 0]])),
+                   shape=(J, J))
+    need = B - J + connected_components(G, directed=False)[0]
+    dist, pred = dijkstra(G, directed=False, return_predecessors=True)
+    edge = {(min(a, b), max(a, b)): k for k, (a, b) in enumerate(bones)}
+
+    def tree_path(v, x):
+        out = []
+        while x != v:
+            p = pred[v, x]
+            out.append(edge[(min(p, x), max(p, x))])
+            x = p
+        return out
+
+    a, b = bones[:, 0], bones[:, 1]
+    ok = (pred[:, b] != a) & (pred[:, a] != b) & np.isfinite(dist[:, a]) & np.isfinite(dist[:, b])
+    v, k = np.nonzero(ok)                    # (root, non-tree edge) pairs: Horton's candidates
+    order = np.argsort(dist[v, a[k]] + w[k] + dist[v, b[k]], kind="stable")
+    reduced, loops = [], []                  # GF(2) elimination, pivots = first set bone
+    for i in order:
+        if len(loops) == need:
+            break
+        vec = np.zeros(B, bool)
+        for e in tree_path(v[i], a[k[i]]) + tree_path(v[i], b[k[i]]) + [k[i]]:
+            vec[e] ^= True
+        r = vec.copy()
+        for piv, row in reduced:
+            if r[piv]:
+                r ^= row
+        if not r.any():
+            continue
+        reduced.append((int(np.argmax(r)), r))
+        loops.append(_walk(bones[vec]))
+    return loops
+
+
+def _walk(edges):
+    """Joints in order around a simple cycle given by its edges."""
+    nbr = {}
+    for p, q in edges:
+        nbr.setdefault(p, []).append(q)
+        nbr.setdefault(q, []).append(p)
+    assert all(len(n) == 2 for n in nbr.values()), "a basis cycle must be simple"
+    start = int(edges[0][0])
+    out, prev, cur = [start], None, start
+    while True:
+        nxt = nbr[cur][0] if nbr[cur][0] != prev else nbr[cur][1]
+        if nxt == start:
+            return out
+        out.append(int(nxt))
+        prev, cur = cur, nxt
+
+
+def _winding(P, c):
+    """Winding number of the closed polygon P (k, 2) around the point c."""
+    ang = np.arctan2(P[:, 1] - c[1], P[:, 0] - c[0])
+    d = np.diff(np.r_[ang, ang[0]])
+    d = (d + np.pi) % (2 * np.pi) - np.pi
+    return d.sum() / (2 * np.pi)
+
+
+def _recomputed_energy(V, F, sk, params):
+    """E of the returned skeleton from scratch: cleaned mesh, its weights, the returned
+    joints, bones and mapping (each working vertex takes the mapping of an input vertex)."""
+    clean = clean_mesh(V, F, min_component_area=params.min_component_area)
+    n = len(clean.V)
+    if params.area_weighted:
+        w = vertex_areas(clean.V, clean.F)
+        w = w * (n / w.sum())
+    else:
+        w = np.ones(n)
+    src = np.full(n, -1)
+    ok = clean.work_index >= 0
+    src[clean.work_index[ok]] = np.flatnonzero(ok)
+    assert (src >= 0).all()
+    return float(energy(FitProblem(clean.V, w, sk.joints, sk.bones, sk.bone[src], sk.t[src])))
+
+
+def test_cycle_helpers_tell_loops_around_one_hole_from_a_loop_around_two():
+    """The helpers the plate test relies on, on ladders drawn by hand: rails y = +-0.75,
+    rungs at x = -2.75, -1, 1, 2.75 (three loops, one per hole); without the rung at x = 1 the
+    shortest basis has a loop around the holes at x = 0 and x = 2 together."""
+    xs = [-2.75, -1.0, 1.0, 2.75]
+    X = np.array([[x, y, 0.0] for y in (0.75, -0.75) for x in xs])
+    rails = [[0, 1], [1, 2], [2, 3], [4, 5], [5, 6], [6, 7]]
+    centres = [(x, 0.0) for x in PLATE["hole_x"]]
+    for rungs, expect in (([[0, 4], [1, 5], [2, 6], [3, 7]], np.eye(3)),
+                          ([[0, 4], [1, 5], [3, 7]], None)):
+        loops = _min_cycle_basis(X, np.array(rails + rungs))
+        A = np.abs(np.array([[_winding(X[lp, :2], c) for c in centres] for lp in loops]).round())
+        if expect is None:
+            assert len(loops) == 2 and sorted(A.sum(axis=1).tolist()) == [1, 2]
+        else:
+            assert len(loops) == 3
+            assert (A[np.argsort(A.argmax(axis=1))] == expect).all()
+
+
+# -- the plate with three holes -------------------------------------------------------------------
+def test_plate_with_three_holes_gives_three_loops_one_around_each_hole():
+    sk = _skeleton("plate_with_holes")
+    cycles, comps, _ = _topology(sk)
+    assert comps == 1
+    assert cycles == 3
+    loops = _min_cycle_basis(sk.joints, sk.bones)
+    assert len(loops) == 3
+    centres = [(x, 0.0) for x in PLATE["hole_x"]]
+    # winding of each loop's projection on the plate's plane (z = 0) around each hole centre
+    W = np.array([[_winding(sk.joints[loop, :2], c) for c in centres] for loop in loops])
+    assert np.allclose(W, W.round(), atol=1e-6)
+    A = np.abs(W.round()).astype(int)
+    # each loop winds once around exactly one hole, each hole has exactly one loop
+    assert (A.sum(axis=1) == 1).all() and (A.sum(axis=0) == 1).all(), W.round(3)
+
+
+def _plate_curve_points():
+    """The plate skeleton's joints and points every D/400 along its bones."""
+    sk = _skeleton("plate_with_holes")
+    X = sk.joints[:, :3]
+    return np.vstack([X, curve_points(X, sk.bones, bbox_diagonal(*_mesh("plate_with_holes")) / 400)])
+
+
+def test_plate_skeleton_stays_inside_the_plate_outline():
+    P = _plate_curve_points()
+    sx, sy, sz = PLATE["size"]
+    assert (np.abs(P[:, 0]) < sx / 2).all() and (np.abs(P[:, 1]) < sy / 2).all()
+    assert (np.abs(P[:, 2]) < sz / 2).all()
+
+
+@pytest.mark.xfail(strict=True, reason="measured 2026-12-02 (975e5bf): 3 of 64 joints and 8.6% "
+                   "of the bone points lie in the x = 2 hole (nearest 0.49 hole radii from its "
+                   "centre): the loop around it cuts across the hole")
+def test_plate_loops_run_through_the_material_not_across_a_hole():
+    """A loop may wind around its hole and still cut across it: every joint and every point
+    along the bones must lie in the material (outside every hole)."""
+    P = _plate_curve_points()
+    to_hole = np.min([np.hypot(P[:, 0] - x, P[:, 1]) for x in PLATE["hole_x"]], axis=0)
+    assert to_hole.min() > PLATE["hole_radius"], to_hole.min() / PLATE["hole_radius"]
+
+
+@pytest.mark.xfail(strict=True, reason="measured 2026-12-02 (975e5bf): zig-zag 0.21 "
+                   "(0.054 after the edit stage; the final LM fit adds the turns), folds 0")
+def test_plate_loops_do_not_zigzag_or_fold():
+    sk = _skeleton("plate_with_holes")
+    m = curve_measures(sk.joints, sk.bones, bbox_diagonal(*_mesh("plate_with_holes")))
+    assert m["folds"] == 0
+    assert m["zigzag"] <= ZIGZAG_MAX
+
+
+def test_plate_loops_have_no_fold():
+    sk = _skeleton("plate_with_holes")
+    assert curve_measures(sk.joints, sk.bones, bbox_diagonal(*_mesh("plate_with_holes")))["folds"] == 0
+
+
+# -- the box-section bar ----------------------------------------------------------------------------
+def _bar_offaxis():
+    """Distance of every joint from the bar's axis (the x axis) / the section's width, and x."""
+    X = _skeleton("box_bar").joints[:, :3]
+    w = min(BAR["size"][1:])
+    return np.hypot(X[:, 1], X[:, 2]) / w, X[:, 0]
+
+
+def test_box_bar_is_one_chain():
+    sk = _skeleton("box_bar")
+    cycles, comps, deg = _topology(sk)
+    assert (cycles, comps) == (0, 1)
+    assert deg.max() <= 2, "a junction in a straight bar"
+    assert (deg == 1).sum() == 2
+    # and it spans the bar: its ends are near the end faces, beyond the medial line's ends
+    L, w = BAR["size"][0], min(BAR["size"][1:])
+    x = sk.joints[deg == 1, 0]
+    assert x.min() < -(L / 2 - w) and x.max() > L / 2 - w
+
+
+def test_box_bar_joints_along_the_medial_line_are_on_the_axis():
+    """The medial axis of a square-section bar is one line (the diagonal sheets meet only on
+    the axis) up to half a width from each end. A joint off it by d has left that line for a
+    sheet: 0.05 of the width is a tenth of the inscribed radius (invisible in a rig, about three
+    times what the method gives with this tessellation, 0.026 when written) and ten times less
+    than the drift of a bone sweeping across a sheet."""
+    off, x = _bar_offaxis()
+    L, w = BAR["size"][0], min(BAR["size"][1:])
+    inner = np.abs(x) <= L / 2 - w / 2
+    assert inner.sum() >= 5
+    assert off[inner].max() <= 0.05, off[inner].max()
+
+
+@pytest.mark.xfail(strict=True, reason="measured 2026-12-02 (975e5bf): the two end joints lie 0.31 "
+                   "and 0.62 of the width off the axis (the leaves go to corners of the end faces, where "
+                   "the Reeb graph's poles are)")
+def test_box_bar_is_straight_to_its_ends():
+    off, _ = _bar_offaxis()
+    assert off.max() <= 0.05, off.max()
+
+
+@pytest.mark.xfail(strict=True, reason="measured 2026-12-02 (975e5bf): zig-zag 0.071, max turn 67 deg at "
+                   "the end joints (max 50 deg after the edit stage; the final fit adds it)")
+def test_box_bar_chain_does_not_turn():
+    sk = _skeleton("box_bar")
+    _, ang = turn_angles(sk.joints[:, :3], sk.bones)
+    assert curve_measures(sk.joints, sk.bones)["zigzag"] == 0
+    assert ang.max() < 60, ang.max()
+
+
+# -- the bent tube ------------------------------------------------------------------------------------
+def test_bent_tube_is_one_smooth_chain():
+    sk = _skeleton("bent_tube")
+    cycles, comps, deg = _topology(sk)
+    assert (cycles, comps) == (0, 1)
+    assert deg.max() <= 2 and (deg == 1).sum() == 2
+    m = curve_measures(sk.joints, sk.bones, bbox_diagonal(*_mesh("bent_tube")))
+    assert m["zigzag"] == 0 and m["folds"] == 0
+    _, ang = turn_angles(sk.joints[:, :3], sk.bones)
+    assert ang.max() < 60, ang.max()
+    # it bends the way the tube does: the chain's ends are near the arc's ends
+    R, a = BENT_TUBE["bend"], BENT_TUBE["angle"]
+    ends = sk.joints[deg == 1, :3]
+    arc_ends = np.array([[R, 0, 0], [R * np.cos(a), R * np.sin(a), 0]])
+    d = np.linalg.norm(ends[:, None] - arc_ends[None], axis=2)
+    assert d.min(axis=0).max() <= 2 * BENT_TUBE["radius"]
+
+
+# -- every procedural shape against its analytic curve --------------------------------------------
+#: measured 2026-12-02 when written (to_ref_mean / from_ref_mean, / D); xfail where > 0.005
+_CURVE_XFAIL = {
+    "torus": "to_ref 0.0053 D, from_ref 0.0054 D (centred curve before the fit 0.0089 / 0.0090)",
+    "plate_with_holes": "to_ref 0.029 D, from_ref 0.025 D (max 0.11 / 0.07)",
+    "box_bar": "to_ref 0.0071 D (the end bones run to corners), from_ref 0.0017 D",
+}
+
+
+def _curve_case(name):
+    if name in _CURVE_XFAIL:
+        return pytest.param(name, marks=pytest.mark.xfail(strict=True, reason=_CURVE_XFAIL[name]))
+    return name
+
+
+@pytest.mark.parametrize("name", [_curve_case(n) for n in SHAPES])
+def test_skeleton_within_0_005_D_of_the_analytic_curve_both_ways(name):
+    V, F = _mesh(name)
+    sk = _skeleton(name)
+    d = curve_distances((sk.joints, sk.bones), SHAPES[name][1](), bbox_diagonal(V, F))
+    assert d["to_ref_mean"] <= CURVE_TOL and d["from_ref_mean"] <= CURVE_TOL, d
+
+
+#: shape measures not at issue 10's targets today (zig-zag <= 0.15, folds 0)
+_SHAPE_XFAIL = {
+    "torus": "zig-zag 0.17: four switchbacks with turns of 166-177 deg (the edited curve turns "
+             "by at most 22 deg; the final LM fit slides joints past each other)",
+    "plate_with_holes": "zig-zag 0.21 (0.054 after the edit stage)",
+}
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=_SHAPE_XFAIL[n]))
+                                  if n in _SHAPE_XFAIL else n for n in SHAPES])
+def test_procedural_shape_has_its_topology_no_zigzag_and_no_fold(name):
+    V, F = _mesh(name)
+    sk = _skeleton(name)
+    cycles, comps, _ = _topology(sk)
+    assert (cycles, comps) == (SHAPES[name][2], 1)
+    m = curve_measures(sk.joints, sk.bones, bbox_diagonal(V, F))
+    assert m["folds"] == 0
+    assert m["zigzag"] <= ZIGZAG_MAX, m["zigzag"]
+
+
+# -- the reported E and the stages -------------------------------------------------------------------
+@pytest.mark.parametrize("paper", [False, True], ids=["default", "paper"])
+@pytest.mark.parametrize("name", ["capsule", "star", "bent_tube"])
+def test_reported_energy_is_the_energy_of_the_returned_skeleton(name, paper):
+    V, F = _mesh(name)
+    sk = _skeleton(name, paper)
+    params = SkeletonParams.paper() if paper else SkeletonParams()
+    E = _recomputed_energy(V, F, sk, params)
+    assert E > 0
+    assert sk.energy[-1] == pytest.approx(E, rel=1e-9)
+    # the last stage recorded (the fit, or a repair after it) is the returned skeleton
+    assert sk.meta["stages"][-1]["energy"] == pytest.approx(E, rel=1e-9)
+
+
+@pytest.mark.parametrize("name", ["capsule", "star", "plate_with_holes"])
+def test_default_records_initialise_centre_edit_fit_each_with_its_energy(name):
+    stages = _skeleton(name).meta["stages"]
+    names = [s["stage"] for s in stages]
+    # these four in this order (a repair stage may follow the fit)
+    assert [n for n in names if n in ("initialise", "centre", "edit", "fit")] == \
+        ["initialise", "centre", "edit", "fit"]
+    assert names[0] == "initialise" and names.index("fit") >= 3
+    for s in stages:
+        assert np.isfinite(s["energy"]) and s["energy"] > 0
+        assert s["joints"] >= 2 and s["bones"] >= 1
+    sk = _skeleton(name)
+    assert (stages[-1]["joints"], stages[-1]["bones"]) == (len(sk.joints), len(sk.bones))
+
+
+@pytest.mark.parametrize("name", ["capsule", "star"])
+def test_paper_params_stay_the_paper(name):
+    sk = _skeleton(name, paper=True)
+    names = [s["stage"] for s in sk.meta["stages"]]
+    assert names[0] == "initialise" and names[-1] == "fit"
+    assert "centre" not in names and "edit" not in names
+    p = sk.meta["params"]
+    assert p["solver"] == "paper" and p["centre"] is False
+    assert not p["area_weighted"] and not p["refit_mapping"]
+    assert "edit" not in sk.meta
+    # the fit starts from the first approximation itself: no edit changed its joints
+    assert sk.meta["stages"][0]["joints"] == len(sk.joints)
