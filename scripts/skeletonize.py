@@ -66,8 +66,16 @@ _HELP = {
 }
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with the CLI's one-line errors (``error: ...``, exit 2) instead of usage + error."""
+
+    def error(self, message):
+        sys.stderr.write(f"error: {message} (see --help)\n")
+        sys.exit(2)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
+    ap = _Parser(
         prog="skeletonize.py",
         description="Curve-skeleton of a mesh file (curveskel). Prints a summary; writes the "
                     "skeleton as curveskel-skeleton/1 JSON with --json.",

@@ -304,6 +304,11 @@ class _Regulariser:
         a = np.clip(np.einsum("jki,ji->jk", n, n[:, 0]), 0.0, 1.0) ** 2
         b = 1.0 / (dist * dist + self.h2)
         w = a * b
+        # A sample whose nearest surface point has a zero normal (a vertex whose face normals
+        # cancel) would have no weight: it takes the nearest point alone, with weight 1.
+        lone = ~(w.sum(axis=1) > 0)
+        if lone.any():
+            w[lone, 0] = 1.0
         W = w.sum(axis=1)
         d = (w * sd).sum(axis=1) / W
         dw = -2.0 * (a * b * b)[:, :, None] * diff                 # dw_i/dx (a: locally fixed)
