@@ -348,6 +348,17 @@ def test_procedural_shape_has_its_topology_no_zigzag_and_no_fold(name):
     assert m["zigzag"] <= ZIGZAG_MAX, m["zigzag"]
 
 
+@pytest.mark.parametrize("name", ["capsule", "bent_capsule", "star"])
+def test_tube_shapes_turn_smoothly(name):
+    """A tube of constant radius has a smooth axis: no chain joint turns by more than 60 deg
+    (the issue's zig-zag angle), not even at a tip (a short bone doubling back at the end of a
+    capsule is a zig-zag a rigger sees as a flipped tip bone)."""
+    sk = _skeleton(name)
+    j, ang = turn_angles(sk.joints[:, :3], sk.bones)
+    assert len(ang) > 0
+    assert ang.max() < 60, (j[ang >= 60], ang[ang >= 60])
+
+
 # -- the reported E and the stages -------------------------------------------------------------------
 @pytest.mark.parametrize("paper", [False, True], ids=["default", "paper"])
 @pytest.mark.parametrize("name", ["capsule", "star", "bent_tube"])
