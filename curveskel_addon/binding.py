@@ -168,7 +168,7 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, smooth: 
         Blend width at joints, as a fraction of bone length (SURFACE only).
     smooth : float >= 0
         Diffusion of the weights along the surface, as a fraction of the median vertex-to-bone
-        distance (at most 30 steps); 0 keeps the blended weights (SURFACE only).
+        distance (at most 12 steps); 0 keeps the blended weights (SURFACE only).
     junction_blend : float in [0, 0.5]
         Blend width where a chain leaves a junction, as a fraction of its first bone's length;
         0 keeps chain boundaries rigid (posing a limb moves no vertex of another limb).

@@ -40,6 +40,9 @@ __all__ = ["skin_weights", "smooth_weights", "smoothing_iterations", "smoothstep
            "bone_partners", "surface_labels", "bone_weights", "MAX_INFLUENCES"]
 
 MAX_INFLUENCES = 4
+#: Most smoothing steps of :func:`bone_weights` (the joints are already blended; the steps only
+#: soften the seams between bone regions, and each costs a sparse product).
+SMOOTH_CAP = 12
 
 
 def smoothstep(x):
@@ -405,7 +408,7 @@ def bone_weights(V, F, heads, tails, parent, deform=None, *, blend: float = 0.25
        0 (the default) keeps chain boundaries rigid, so posing a chain never moves a vertex
        that belongs to another chain.
     3. The weights are diffused along the surface over ``smooth`` times the median
-       vertex-to-bone distance (:func:`smooth_weights`, at most 30 steps), then each vertex keeps
+       vertex-to-bone distance (:func:`smooth_weights`, at most ``SMOOTH_CAP`` steps), then each vertex keeps
        only its main bone and either that bone's parent or its children (the heavier side), and
        only across joints that blend: weights never spread to a sibling limb, across a gap, or
        over a rigid chain boundary.
@@ -481,7 +484,7 @@ def bone_weights(V, F, heads, tails, parent, deform=None, *, blend: float = 0.25
     k = 0
     if smooth > 0 and len(E) and n:
         h = float(np.mean(np.linalg.norm(P[E[:, 0]] - P[E[:, 1]], axis=1)))
-        k = smoothing_iterations(smooth * float(np.median(dist)), h)
+        k = smoothing_iterations(smooth * float(np.median(dist)), h, cap=SMOOTH_CAP)
     index, weight = smooth_weights(index, weight, E, iterations=k, max_influences=max_influences)
     # keep the main bone's family only (itself, its parent, its children)
     main = index[:, :1]
