@@ -33,20 +33,21 @@ find_python() {  # find_python X.Y [explicit-path]
 }
 
 if [ "${1:-}" = "--find-python" ]; then
-  find_python "${2:?usage: bootstrap.sh --find-python X.Y}"
+  want="${2:?usage: bootstrap.sh --find-python X.Y}"
+  if [ "$want" = 3.13 ]; then explicit="${PYTHON313:-}"; else explicit="${PYTHON:-}"; fi
+  find_python "$want" "$explicit"
   exit
 fi
 
 req="${1:-requirements-dev.txt}"
 case "$(basename "$req")" in
-  requirements-313.txt) venv=.venv313; want=3.13; explicit="${PYTHON313:-}"
+  requirements-313.txt) venv=.venv313; want=3.13; var=PYTHON313
     why="bpy 5.2 and Blender 5.1+ use it" ;;
-  *) venv=.venv; want=3.11; explicit="${PYTHON:-}"
+  *) venv=.venv; want=3.11; var=PYTHON
     why="Blender 4.2-5.0 and the bpy 5.0.1 wheel use it" ;;
 esac
-if ! py=$(find_python "$want" "$explicit"); then
-  echo "curveskel: $req needs Python $want ($why); set PYTHON=/path/to/python$want" \
-       "(PYTHON313 for .venv313)" >&2
+if ! py=$(find_python "$want" "${!var:-}"); then
+  echo "curveskel: $req needs Python $want ($why); set $var=/path/to/python$want" >&2
   exit 1
 fi
 if [ ! -x "$venv/bin/python" ]; then
