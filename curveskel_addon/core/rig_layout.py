@@ -18,6 +18,10 @@ Rules
   position along the branch from its root end.
 - Roll: a z-axis per bone, perpendicular to it, carried from the parent bone by projection
   (parallel transport), so consecutive bones never flip by 180 degrees.
+
+The armature's bones come from :func:`named_rig`: the layout's bones with readable names
+(``root``, ``spine.01``, ``limbK.L.01`` / ``limbK.R.01``, ``chainK.01``), mirrored exactly about
+the mesh's mirror plane (:func:`mirror_plane`) when it has one; see :func:`named_rig`.
 """
 
 from __future__ import annotations

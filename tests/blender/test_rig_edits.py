@@ -8,7 +8,6 @@ skeletonizer. conftest.py registers the add-on and empties the scene before ever
 """
 
 import json
-import math
 import os
 import shutil
 import struct
