@@ -49,6 +49,8 @@ EDIT_CONSTANTS = {
     # containment repair: points tested along each bone, and rounds of splitting
     "contain_samples": 10,
     "contain_rounds": 2,
+    # ... and splits stop where the skeleton's zig-zag fraction would pass this (the target)
+    "contain_zigzag": 0.15,
 }
 
 
@@ -109,8 +111,10 @@ def chains(n_joints, bones):
 
 
 def _dp_keep(P, tol, max_len=np.inf):
-    """Douglas-Peucker on a polyline P (k, 3): mask of the points to keep (ends always).
-    A span longer than ``max_len`` is split at its farthest point as well."""
+    """Douglas-Peucker on a polyline P (k, 3) or (k, 4): mask of the points to keep (ends
+    always). With a 4th column (the radius) a joint is also kept where the radius departs from
+    its linear interpolation (a knee, a neck): the silhouette needs it even on a straight
+    chain. A span longer than ``max_len`` (in space) is split at its middle as well."""
     k = len(P)
     keep = np.zeros(k, bool)
     keep[0] = keep[-1] = True
@@ -129,10 +133,10 @@ def _dp_keep(P, tol, max_len=np.inf):
             d = np.linalg.norm(Q, axis=1)
         excess = d - tol[a + 1:b]
         m = int(np.argmax(excess))
-        if L2 > max_len * max_len and excess[m] <= 0:
+        if float(seg[:3] @ seg[:3]) > max_len * max_len and excess[m] <= 0:
             # too long a bone: split at the joint nearest the middle of the span
-            cum = np.linalg.norm(P[a + 1:b] - P[a], axis=1)
-            m = int(np.argmin(np.abs(cum - 0.5 * np.sqrt(L2))))
+            cum = np.linalg.norm(P[a + 1:b, :3] - P[a, :3], axis=1)
+            m = int(np.argmin(np.abs(cum - 0.5 * np.sqrt(float(seg[:3] @ seg[:3])))))
             excess[m] = 1.0
         if excess[m] > 0:
             keep[a + 1 + m] = True
@@ -163,12 +167,12 @@ def merge_chains(joints, bones, tol, max_len=np.inf):
         js = np.asarray(js)
         if len(js) >= 3 and js[0] == js[-1]:
             # a cycle: keep at least three joints so it stays a cycle
-            kp = _dp_keep(joints[js, :3], tol[js], max_len)
+            kp = _dp_keep(joints[js], tol[js], max_len)
             if kp.sum() < 4:
                 idx = np.linspace(0, len(js) - 1, 4).round().astype(int)
                 kp[idx] = True
         else:
-            kp = _dp_keep(joints[js, :3], tol[js], max_len)
+            kp = _dp_keep(joints[js], tol[js], max_len)
         kept = np.flatnonzero(kp)
         keep_joint[js[kept]] = True
         for a, b in zip(kept[:-1], kept[1:]):
@@ -435,6 +439,21 @@ def edit_stage(state, *, prune, simplify, max_joints, diag):
     return out
 
 
+def _split_three(X, bones, tb, M, rho, n1, n2):
+    """Bones ``tb`` split in three at medial points n1, n2: (joints, bones) with the kept
+    bones first, then the first, middle and last pieces of every split bone."""
+    J = len(X)
+    keep_b = np.ones(len(bones), bool)
+    keep_b[tb] = False
+    nn = np.ravel(np.column_stack([n1, n2]))
+    new_j = np.column_stack([M[nn], rho[nn]])
+    i1 = J + 2 * np.arange(len(tb))
+    i2 = i1 + 1
+    new_bones = np.concatenate([bones[keep_b], np.stack([bones[tb, 0], i1], 1),
+                                np.stack([i1, i2], 1), np.stack([i2, bones[tb, 1]], 1)])
+    return np.concatenate([X, new_j]), new_bones
+
+
 def _outside_per_bone(inside_test, joints, bones, k):
     """(B, k) bool: sample u = (i + 1/2) / k along every bone is outside the mesh."""
     u = (np.arange(k) + 0.5) / k
@@ -498,40 +517,72 @@ def contain_stage(state, inside_test, medial, *, diag):
         out_b = trial_out
     else:
         log["trimmed"] = 0
-    # 2. bones leaving the mesh: split at the medial point nearest their middle outside sample
+    # 2. bones leaving the mesh: split in three at the medial points nearest the samples a
+    # third and two thirds of the way along (two joints share a bend: one joint alone would
+    # turn by the whole corner, a zig-zag by the measure), bone by bone
     M, rho = medial
-    tree = cKDTree(M) if len(M) else None
-    for _ in range(C["contain_rounds"]):
-        bad = np.flatnonzero(out_b.any(axis=1))
-        if bad.size == 0 or tree is None:
-            break
-        X = state.joints
-        mid_s = np.array([np.flatnonzero(out_b[b])[len(np.flatnonzero(out_b[b])) // 2] for b in bad])
-        P = X[bones[bad, 0], :3] + u[mid_s, None] * (X[bones[bad, 1], :3] - X[bones[bad, 0], :3])
-        _, nn = tree.query(P)
-        J = len(X)
-        new_j = np.column_stack([M[nn], rho[nn]])
-        nb = bones.copy()
-        nb[bad, 1] = J + np.arange(len(bad))
-        extra = np.stack([J + np.arange(len(bad)), bones[bad, 1]], axis=1)
-        trial_j = np.concatenate([X, new_j])
-        trial_b = np.concatenate([nb, extra])
-        trial_out, _ = _outside_per_bone(inside_test, trial_j, trial_b, k)
-        before = curve_measures(X, bones, diag)
-        after = curve_measures(trial_j, trial_b, diag)
-        if not (trial_out.sum() < out_b.sum() and after["fold_pairs"] <= before["fold_pairs"]
-                and after["zigzag"] <= max(before["zigzag"], 0.0) + 0.05):
-            break
-        # a split piece explains what its bone explained
-        pieces = np.concatenate([np.arange(len(bones)), bad])
-        owner_pairs = state.pairs
-        add = owner_pairs[np.isin(owner_pairs[:, 1], bad)].copy()
-        add[:, 1] = len(bones) + np.searchsorted(bad, add[:, 1])
-        state.pairs = np.unique(np.concatenate([owner_pairs, add]), axis=0)
-        state.joints, state.bones = trial_j, trial_b
-        bones, out_b = trial_b, trial_out
-        log["split"] += int(len(bad))
-        del pieces
+    if len(M):
+        tree = cKDTree(M)
+        for _ in range(C["contain_rounds"]):
+            bad = np.flatnonzero(out_b.any(axis=1))
+            if bad.size == 0:
+                break
+            X = state.joints
+            B = len(bones)
+            xi, xj = X[bones[bad, 0], :3], X[bones[bad, 1], :3]
+            _, n1 = tree.query(xi + (xj - xi) / 3.0)
+            _, n2 = tree.query(xi + 2.0 * (xj - xi) / 3.0)
+            J = len(X)
+            # all splits at once, then keep those that pass their own local test
+            ids1 = J + 2 * np.arange(len(bad))
+            ids2 = ids1 + 1
+            trial_j = np.concatenate([X, np.column_stack([M[np.ravel(np.column_stack([n1, n2]))],
+                                                          rho[np.ravel(np.column_stack([n1, n2]))]])])
+            pieces = np.concatenate([np.stack([bones[bad, 0], ids1], 1), np.stack([ids1, ids2], 1),
+                                     np.stack([ids2, bones[bad, 1]], 1)])
+            p_out, _ = _outside_per_bone(inside_test, trial_j, pieces, k)
+            nb = len(bad)
+            local_out = p_out[:nb].sum(1) + p_out[nb:2 * nb].sum(1) + p_out[2 * nb:].sum(1)
+            better = local_out * 1.0 / 3.0 < out_b[bad].sum(1)       # 3k samples vs k
+            # greedily, most outside first: a split is kept while the skeleton stays within the
+            # zig-zag target and gains no fold (a corner split in three turns twice; a bone that
+            # crosses air between two parts may need a sharp bend to get inside)
+            before = curve_measures(X, bones, diag)
+            limit = max(before["zigzag"], C["contain_zigzag"])
+            order = np.argsort(-(out_b[bad].sum(1) - local_out / 3.0), kind="stable")
+            take = np.zeros(len(bad), bool)
+            for q in order:
+                if not better[q]:
+                    continue
+                take[q] = True
+                sel = np.flatnonzero(take)
+                cj, cb = _split_three(X, bones, bad[sel], M, rho, n1[sel], n2[sel])
+                after = curve_measures(cj, cb, diag)
+                if after["fold_pairs"] > before["fold_pairs"] or after["zigzag"] > limit:
+                    take[q] = False
+            if not take.any():
+                break
+            sel = np.flatnonzero(take)
+            tb = bad[sel]
+            keep_b = np.ones(B, bool)
+            keep_b[tb] = False
+            cand_j, new_bones = _split_three(X, bones, tb, M, rho, n1[sel], n2[sel])
+            # the pieces explain what their bone explained (same order as _split_three)
+            old_to_new = np.full(B, -1, np.int64)
+            old_to_new[keep_b] = np.arange(keep_b.sum())
+            base = keep_b.sum()
+            m = len(tb)
+            p = state.pairs
+            keep_rows = p[keep_b[p[:, 1]]]
+            keep_rows = np.column_stack([keep_rows[:, 0], old_to_new[keep_rows[:, 1]]])
+            split_rows = p[~keep_b[p[:, 1]]]
+            where = np.searchsorted(tb, split_rows[:, 1])
+            add = [np.column_stack([split_rows[:, 0], base + q * m + where]) for q in range(3)]
+            state.pairs = np.unique(np.concatenate([keep_rows] + add), axis=0)
+            state.joints, state.bones = cand_j, new_bones
+            bones = new_bones
+            out_b, _ = _outside_per_bone(inside_test, state.joints, bones, k)
+            log["split"] += int(m)
     state.remap()
     log["outside_after"] = float(out_b.mean())
     return log

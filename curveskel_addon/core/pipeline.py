@@ -26,7 +26,7 @@ from typing import Callable, Iterator
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .centreline import centre_stage
+from .centreline import centre_stage, fit_radii_surface, smooth_chains
 from .edit import contain_stage, edit_stage
 from .errors import CurveSkelError
 from .mapping import closest_on_bones
@@ -44,6 +44,12 @@ from .vertex_area import vertex_areas
 __all__ = ["skeletonize", "SkeletonRun"]
 
 Progress = Callable[[str, float], None]
+
+#: After the fit of E, refit the radii to the surface (least absolute deviations of each
+#: vertex's distance to its nearest bone; :func:`.centreline.fit_radii_surface`).
+SURFACE_RADII = True
+#: Chain smoothing after the fit of E (weight of the second difference; see smooth_chains).
+FIT_SMOOTHING = 0.3
 
 
 class SkeletonRun:
@@ -217,13 +223,23 @@ class SkeletonRun:
                   iterations=int(s.iteration))
         if self.params.centre and st.medial is not None:
             t0 = time.perf_counter()
+            with self._timed("radii"):
+                if FIT_SMOOTHING > 0:
+                    # the fit of E moves joints a little each; a wiggle of neighbours in
+                    # opposite directions reads as a zig-zag: smooth it out along the chains
+                    st.joints[:, :3] = smooth_chains(st.joints, st.bones, FIT_SMOOTHING)
+                if SURFACE_RADII:
+                    st.joints[:, 3], st.bone, st.t = fit_radii_surface(
+                        st.V, st.weights, st.joints, st.bones)
+            st.record("radii", time.perf_counter() - t0)
+            t0 = time.perf_counter()
             with self._timed("contain"):
                 diag = float(np.linalg.norm(np.ptp(st.V, axis=0)))
                 self.contain_log = contain_stage(st, InsideTest(st.V, st.F), st.medial, diag=diag)
             st.record("contain", time.perf_counter() - t0)
-        # E over the fit (on the fitted points), its last value replaced by the E of what is
-        # returned (all vertices, radii flipped, every vertex mapped)
-        E = (list(self.energy[:-1]) if self.fit_subset is None else []) + [st.log[-1]["energy"]]
+        # E after every stage (all vertices, each stage's own mapping); the last is the E of
+        # the returned skeleton with its returned mapping. The fit's iterations are in meta.
+        E = [x["energy"] for x in st.log]
         self._finished = self._to_skeleton(st.joints, st.bones, st.bone, st.t, E)
         return self._finished
 
@@ -253,7 +269,9 @@ class SkeletonRun:
                 "component_info": self.component_meta, "input": self.mesh.info,
                 "fit_points": int(len(self.fit_subset) if self.fit_subset is not None
                                   else len(self.mesh.V)),
-                "stages": [dict(x) for x in self.state.log]}
+                "stages": [dict(x) for x in self.state.log],
+                "fit_energy": [float(e) for e in self.energy],
+                "fit_points_subset": self.fit_subset is not None}
         if getattr(self, "edit_log", None) is not None:
             meta["edit"] = self.edit_log
         if getattr(self, "contain_log", None) is not None:

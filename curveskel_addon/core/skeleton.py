@@ -30,7 +30,10 @@ class Skeleton:
     t : (n,) float
         Skeleton mapping: sigma(v) = t * x_i + (1 - t) * x_j for bone (i, j) (eq. 19).
     energy : list of float
-        E0, E1, ..., Ek over the optimisation (eq. 20; area-weighted when that option is on).
+        E (eq. 20; area-weighted when that option is on) after every stage of the pipeline
+        (``meta["stages"]`` names them: initialise, centre, edit, fit, contain); the last is
+        the E of this skeleton with this mapping. The fit's own iterations are in
+        ``meta["fit_energy"]``.
     timings : dict
         Seconds per stage.
     meta : dict
@@ -63,6 +66,10 @@ class Skeleton:
 
     @property
     def iterations(self) -> int:
+        """Iterations of the fit of E (from the pipeline's stage log), else len(energy) - 1."""
+        for st in self.meta.get("stages", []):
+            if st.get("stage") == "fit" and "iterations" in st:
+                return int(st["iterations"])
         return max(len(self.energy) - 1, 0)
 
     def sigma(self) -> np.ndarray:

@@ -223,8 +223,6 @@ def test_plate_loops_run_through_the_material_not_across_a_hole():
     assert to_hole.min() > PLATE["hole_radius"], to_hole.min() / PLATE["hole_radius"]
 
 
-@pytest.mark.xfail(strict=True, reason="measured 2026-12-02 (975e5bf): zig-zag 0.21 "
-                   "(0.054 after the edit stage; the final LM fit adds the turns), folds 0")
 def test_plate_loops_do_not_zigzag_or_fold():
     sk = _skeleton("plate_with_holes")
     m = curve_measures(sk.joints, sk.bones, bbox_diagonal(*_mesh("plate_with_holes")))
@@ -278,8 +276,6 @@ def test_box_bar_is_straight_to_its_ends():
     assert off.max() <= 0.05, off.max()
 
 
-@pytest.mark.xfail(strict=True, reason="measured 2026-12-02 (975e5bf): zig-zag 0.071, max turn 67 deg at "
-                   "the end joints (max 50 deg after the edit stage; the final fit adds it)")
 def test_box_bar_chain_does_not_turn():
     sk = _skeleton("box_bar")
     _, ang = turn_angles(sk.joints[:, :3], sk.bones)
@@ -329,11 +325,7 @@ def test_skeleton_within_0_005_D_of_the_analytic_curve_both_ways(name):
 
 
 #: shape measures not at issue 10's targets today (zig-zag <= 0.15, folds 0)
-_SHAPE_XFAIL = {
-    "torus": "zig-zag 0.17: four switchbacks with turns of 166-177 deg (the edited curve turns "
-             "by at most 22 deg; the final LM fit slides joints past each other)",
-    "plate_with_holes": "zig-zag 0.21 (0.054 after the edit stage)",
-}
+_SHAPE_XFAIL: dict = {}
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=_SHAPE_XFAIL[n]))
