@@ -20,8 +20,10 @@ of the first approximation is never left), the second sum runs over the chain jo
 neighbours a and b) and ``mass_j`` is the weight of the points joint j explains (so ``lam`` is
 scale-free: 1 means a joint's smoothness counts as much as its data). With sigma fixed the
 problem is linear least squares in X (a sparse J x J system, three right-hand sides);
-alternating it with the closest-point step (as a principal curve or an elastic principal
-graph is fitted) converges in a few rounds. ``w_v`` is the vertex area times the medial
+it can be alternated with the closest-point step, as a principal curve or an elastic principal
+graph is fitted -- stable only with ``lam > 0`` (without it zig-zag modes cost nothing and the
+alternation drifts), and on a part whose medial set is a sheet even then free to wander: the
+pipeline takes one round from the Reeb sigma. ``w_v`` is the vertex area times the medial
 radius: the balls of surface noise are small and sit off the axis, the part's own balls are
 large.
 

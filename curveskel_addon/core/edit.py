@@ -166,11 +166,18 @@ def merge_chains(joints, bones, tol, max_len=np.inf):
     for js, bs in chains(J, bones):
         js = np.asarray(js)
         if len(js) >= 3 and js[0] == js[-1]:
-            # a cycle: keep at least three joints so it stays a cycle
-            kp = _dp_keep(joints[js], tol[js], max_len)
-            if kp.sum() < 4:
-                idx = np.linspace(0, len(js) - 1, 4).round().astype(int)
-                kp[idx] = True
+            # a closed chain starts and ends at the same joint: Douglas-Peucker would see a
+            # span of length 0. Split it at the joint farthest from its start and simplify the
+            # two halves; keep at least 7 distinct joints where it has them (a loop of n joints
+            # turns by 360/n degrees at each: 7 keeps every turn under the zig-zag's 60)
+            P = joints[js, :3]
+            m = int(np.argmax(np.linalg.norm(P - P[0], axis=1)))
+            kp = np.zeros(len(js), bool)
+            kp[:m + 1] |= _dp_keep(joints[js[:m + 1]], tol[js[:m + 1]], max_len)
+            kp[m:] |= _dp_keep(joints[js[m:]], tol[js[m:]], max_len)
+            n_min = min(7, len(js) - 1)
+            if kp[:-1].sum() < n_min:
+                kp[np.linspace(0, len(js) - 1, n_min + 1).round().astype(int)] = True
         else:
             kp = _dp_keep(joints[js], tol[js], max_len)
         kept = np.flatnonzero(kp)
