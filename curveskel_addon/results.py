@@ -120,10 +120,14 @@ def find_result(source) -> dict:
         if ob is not None and _pointer(ob, SOURCE_POINTER) == src:
             found[role] = ob
     if name:
+        # by name: files saved before the pointers, or a source pointer whose reverse was
+        # cleared (a cancelled interactive run removes its live silhouette)
         for role, cand in zip(("armature", "silhouette"), result_names(name)):
             ob = bpy.data.objects.get(cand)
-            if (found[role] is None and ob is not None and _pointer(ob, SOURCE_POINTER) is None
-                    and ob.get(SOURCE_KEY) == name):
+            if found[role] is not None or ob is None:
+                continue
+            ptr = _pointer(ob, SOURCE_POINTER)
+            if (ptr is None and ob.get(SOURCE_KEY) == name) or (ptr is not None and ptr == src):
                 found[role] = ob
     return found
 

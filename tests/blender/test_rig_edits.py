@@ -178,7 +178,9 @@ def test_rename_mesh_then_bind_and_regenerate_gives_one_rig():
     assert bpy.ops.curveskel.generate('EXEC_DEFAULT', bind=True) == {'FINISHED'}
     arm = bpy.data.objects["L.skeleton"]
     ob.name = "Leg"
+    arm.name = "my rig"
     assert results.find_result("Leg")["armature"] == arm          # pointers, not names
+    assert results.source_object(arm) == ob and results.source_of(arm) == "Leg"
     assert results.find_result(ob)["silhouette"] == bpy.data.objects["L.silhouette"]
     bpy.context.view_layer.objects.active = ob
     assert bpy.ops.curveskel.bind.poll()
