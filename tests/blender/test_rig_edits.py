@@ -449,3 +449,27 @@ def test_glb_passes_the_khronos_validator_and_holds_mesh_and_armature_only(tmp_p
     assert sorted(o.type for o in bpy.data.objects) == ["ARMATURE", "MESH"]
     me = next(o for o in bpy.data.objects if o.type == 'MESH')
     assert len(me.data.vertices) == len(V)
+
+
+def test_bind_operator_from_armature_edit_mode_takes_the_edit():
+    """Select the mesh, then the armature (active), edit a bone and bind without leaving Edit
+    Mode: the operator leaves it and binds to the bones as edited."""
+    V, sk, ob, arm, _ = rigged("star")
+    leaf, _ = leaf_and_arm_bone(arm, np.array([0.0, -1.0, 0.0]))
+    name = leaf.name
+    vl = bpy.context.view_layer
+    for o in vl.objects:
+        o.select_set(False)
+    ob.select_set(True)
+    arm.select_set(True)
+    vl.objects.active = arm
+    bpy.ops.object.mode_set(mode='EDIT')
+    ebs = arm.data.edit_bones
+    ebs.remove(ebs[name])
+    extra = ebs.new("fin")
+    extra.head, extra.tail = (0.0, 0.0, 0.0), (0.0, 0.0, 0.4)     # inside the centre
+    assert bpy.ops.curveskel.bind.poll()
+    assert bpy.ops.curveskel.bind(method='SURFACE') == {'FINISHED'}
+    assert arm.mode == 'OBJECT'
+    check_bound(ob, arm)
+    assert name not in groups_of(ob) and "fin" in groups_of(ob)
