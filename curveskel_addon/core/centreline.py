@@ -208,7 +208,8 @@ def fit_centreline(M, w, joints, bones, cand, *, smooth=1.0, anchor=None, anchor
         if depth is not None:
             has = np.asarray(AtA.sum(axis=1)).ravel() > 0
             B = np.where(has[:, None], rhs / np.maximum(np.asarray(AtA.sum(axis=1)), 1e-300), X)
-            deeper = depth(B) > (1.0 + depth_gain) * depth(X)
+            dX = depth(X)
+            deeper = depth(B) > np.where(dX > 0, (1.0 + depth_gain) * dX, dX)
             target = np.where((deeper & has)[:, None], B, X)
             H = sp.diags(mass) + S.T @ sp.diags(lam) @ S
             rhs = mass[:, None] * target
@@ -345,9 +346,15 @@ def centre_stage(state, spacing_abs, *, smooth, seed=0):
     depth = None
     if DEPTH_SELECT:
         from scipy.spatial import cKDTree
+
         tree = cKDTree(V)
+        inside = state.inside
+
         def depth(P):
-            return tree.query(P)[0]
+            # distance to the surface, negative outside: the centroid of a curved medial set
+            # (a ring's arc) can fall in the hole, far from the surface but not in the shape
+            d = tree.query(P)[0]
+            return np.where(inside(P), d, -d)
     X, _, _ = fit_centreline(M, rho, joints, bones, state.candidates(idx), smooth=smooth,
                              rounds=CENTRE_ROUNDS, map_points=V[idx] if MAP_VERTICES else None,
                              depth=depth)

@@ -34,7 +34,6 @@ from .mesh_graph import components
 from .mesh_input import clean_mesh
 from .params import SkeletonParams, check_params
 from .problem import FitProblem, SolverState
-from .quality import InsideTest
 from .reeb import first_approximation
 from .skeleton import Skeleton
 from .solvers import solve_steps
@@ -235,7 +234,7 @@ class SkeletonRun:
             t0 = time.perf_counter()
             with self._timed("contain"):
                 diag = float(np.linalg.norm(np.ptp(st.V, axis=0)))
-                self.contain_log = contain_stage(st, InsideTest(st.V, st.F), st.medial, diag=diag)
+                self.contain_log = contain_stage(st, st.inside, st.medial, diag=diag)
             st.record("contain", time.perf_counter() - t0)
         # E after every stage (all vertices, each stage's own mapping); the last is the E of
         # the returned skeleton with its returned mapping. The fit's iterations are in meta.

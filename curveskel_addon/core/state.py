@@ -79,6 +79,15 @@ class PipelineState:
     pairs: np.ndarray
     log: list = field(default_factory=list)
     medial: tuple | None = None     # (M (k, 3), rho (k,)): medial points of surface samples
+    _inside: object = None
+
+    @property
+    def inside(self):
+        """Exact inside test of the working mesh (:class:`.quality.InsideTest`), built once."""
+        if self._inside is None:
+            from .quality import InsideTest
+            self._inside = InsideTest(self.V, self.F)
+        return self._inside
 
     @property
     def n_regions(self) -> int:

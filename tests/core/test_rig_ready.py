@@ -212,9 +212,6 @@ def test_plate_skeleton_stays_inside_the_plate_outline():
     assert (np.abs(P[:, 2]) < sz / 2).all()
 
 
-@pytest.mark.xfail(strict=True, reason="measured 2026-12-02 (975e5bf): 3 of 64 joints and 8.6% "
-                   "of the bone points lie in the x = 2 hole (nearest 0.49 hole radii from its "
-                   "centre): the loop around it cuts across the hole")
 def test_plate_loops_run_through_the_material_not_across_a_hole():
     """A loop may wind around its hole and still cut across it: every joint and every point
     along the bones must lie in the material (outside every hole)."""
