@@ -263,7 +263,7 @@ def fit_radii(V, w, X, bones, bone, t, *, smooth=0.01):
     return np.maximum(r, 0.0)
 
 
-def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0):
+def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0, key=None):
     """Medial points of (at most) k area-weighted vertex samples.
 
     Returns
@@ -279,7 +279,8 @@ def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0):
         idx = np.arange(n)
     else:
         a = vertex_areas(V, F)
-        idx = np.sort(np.random.default_rng(seed).choice(n, size=k, replace=False, p=a / a.sum()))
+        from .state import canonical_sample
+        idx = canonical_sample(np.arange(n) if key is None else key, k, seed, p=a)
     X = np.asarray(fa_joints)[:, :3]
     i, j = fa_bones[bone[idx], 0], fa_bones[bone[idx], 1]
     sig = t[idx, None] * X[i] + (1.0 - t[idx, None]) * X[j]
@@ -320,7 +321,7 @@ def centre_stage(state, spacing_abs, *, smooth, seed=0):
     from .edit import collapse_short_bones
     V, F = state.V, state.F
     idx, M, rho = medial_samples(V, F, state.joints, state.bones, state.bone, state.t,
-                                 MEDIAL_SAMPLES, seed=seed)
+                                 MEDIAL_SAMPLES, seed=seed, key=state.key)
     state.medial = (M, rho)
     # contract the tiny bones (direction noise), then split the bones of branching regions
     joints, bones, bmap = collapse_short_bones(state.joints, state.bones,

@@ -37,7 +37,7 @@ from .problem import FitProblem, SolverState
 from .reeb import first_approximation
 from .skeleton import Skeleton
 from .solvers import solve_steps
-from .state import PipelineState
+from .state import PipelineState, canonical_sample
 from .vertex_area import vertex_areas
 
 __all__ = ["skeletonize", "SkeletonRun"]
@@ -104,13 +104,16 @@ class SkeletonRun:
         bone = np.empty(len(V), np.int64)
         t = np.empty(len(V))
         region = np.empty(len(V), np.int64)
+        key = np.zeros(len(V))
         nj = nb = nr = 0
         comp_meta = []
         for c in range(self.n_components):
             vids = order[starts[c]:starts[c + 1]]
             local[vids] = np.arange(len(vids))
             Fc = local[F[forder[fstarts[c]:fstarts[c + 1]]]]
-            fa = first_approximation(V[vids], Fc, spacing=p.spacing, seed=p.seed + c)
+            # one seed for every component: seed 0 starts each pole search at the vertex nearest its
+            # centroid, so the skeleton does not depend on how the components are numbered
+            fa = first_approximation(V[vids], Fc, spacing=p.spacing, seed=p.seed)
             for stage, sec in fa.meta.get("timings", {}).items():
                 self.timings[stage] = self.timings.get(stage, 0.0) + sec
             if fa.region is None:             # one bone for the whole component
@@ -123,6 +126,7 @@ class SkeletonRun:
             bone[vids] = fa.bone + nb
             t[vids] = fa.t
             region[vids] = reg_c + nr
+            key[vids] = fa.f if fa.f is not None else 0.0
             pairs.append(np.stack([breg_c + nr, np.arange(len(fa.bones)) + nb], axis=1))
             Vc = V[vids]
             diag = float(np.linalg.norm(Vc.max(axis=0) - Vc.min(axis=0)))
@@ -144,6 +148,7 @@ class SkeletonRun:
                 w = np.ones(len(V))
         st = PipelineState(V, F, w, np.concatenate(joints), np.concatenate(bones), bone, t, region,
                            np.unique(np.concatenate(pairs), axis=0))
+        st.key = np.where(np.isfinite(key), key, 0.0)
         st.record("initialise", sum(self.timings.get(k, 0.0) for k in
                                     ("pole", "contours", "reeb", "meb", "mapping")))
         return st
@@ -174,8 +179,7 @@ class SkeletonRun:
         self.fit_subset = None
         n = len(pr.points)
         if p.area_weighted and p.max_fit_points and n > p.max_fit_points:
-            rng = np.random.default_rng(p.seed)
-            idx = np.sort(rng.choice(n, size=p.max_fit_points, replace=False))
+            idx = canonical_sample(st.key, p.max_fit_points, p.seed)
             self.fit_subset = idx
             pr = FitProblem(pr.points[idx], pr.weights[idx] * (n / p.max_fit_points), pr.joints,
                             pr.bones, pr.bone[idx], pr.t[idx], pr.meta)

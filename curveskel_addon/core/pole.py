@@ -85,7 +85,9 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int) -> t
     lengths : (e,) float
         Edge lengths (weights of the graph).
     seed : int
-        Seed of the random first vertex (``np.random.default_rng(seed)``).
+        0: start at the vertex nearest the centroid (independent of vertex order, position,
+        scale and rotation); otherwise the seed of a random first vertex
+        (``np.random.default_rng(seed)``), as in the paper.
 
     Returns
     -------
@@ -115,14 +117,21 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int) -> t
     E = np.asarray(E, dtype=np.int64).reshape(-1, 2)
     if len(np.asarray(lengths)) != len(E):
         raise CurveSkelError(f"find_pole: {len(E)} edges but {len(lengths)} lengths")
-    rng = np.random.default_rng(seed)
-    v1 = int(rng.integers(n))
+    if seed == 0:
+        # The default start is the vertex nearest the centroid: the same vertex whatever the
+        # order of the vertices, their position, scale or rotation (issue 12). Any other seed
+        # draws the paper's random vertex.
+        c = V.mean(axis=0)
+        v1 = int(np.argmin(np.einsum("ij,ij->i", V - c, V - c)))
+    else:
+        v1 = int(np.random.default_rng(seed).integers(n))
     if len(E) == 0:
         f = np.full(n, np.inf)
         f[v1] = 0.0
         return v1, f
     A = edge_graph(n, E, lengths)
-    v2 = int(np.argmax(np.einsum("ij,ij->i", V - V[v1], V - V[v1])))
+    d1 = geodesic_from(A, v1)
+    v2 = int(np.argmax(np.where(np.isfinite(d1), d1, -1.0)))
     d = geodesic_from(A, v2)
     d = np.where(np.isfinite(d), d, -1.0)
     top = d.max()

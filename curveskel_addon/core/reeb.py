@@ -107,6 +107,9 @@ class FirstApproximation:
         Reeb region of each vertex (None for the single-bone fallback).
     bone_region : (B,) int or None
         Reeb region each bone explains: a vertex's sigma stays on the bones of its region.
+    f : (n,) float or None
+        The geodesic distance from the pole: an order of the vertices that does not depend on
+        their numbering (the pipeline draws its samples in this order).
     """
 
     joints: np.ndarray
@@ -116,6 +119,7 @@ class FirstApproximation:
     meta: dict = field(default_factory=dict)
     region: np.ndarray | None = None
     bone_region: np.ndarray | None = None
+    f: np.ndarray | None = None
 
 
 # ------------------------------------------------------------------------------------------------
@@ -495,6 +499,7 @@ def first_approximation(V, F, *, spacing: float, seed: int) -> FirstApproximatio
     fa = _finish(V, joints, bones, region_bones, meta, timings)
     if region_bones is not None:
         fa.region, fa.bone_region = rb.reg_v.astype(np.int64), bone_reg
+    fa.f = f
     return fa
 
 

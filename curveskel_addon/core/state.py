@@ -20,7 +20,23 @@ from .energy import energy
 from .mapping import closest_on_bones
 from .problem import FitProblem
 
-__all__ = ["PipelineState", "candidates_from_pairs"]
+__all__ = ["PipelineState", "candidates_from_pairs", "canonical_sample"]
+
+
+def canonical_sample(key, k, seed=0, p=None):
+    """``k`` indices drawn without replacement (probabilities ``p``), in an order that does not
+    depend on how the points are numbered: the draw runs over the points sorted by ``key`` (a
+    quantity of the shape, e.g. the geodesic distance from the pole), so a permuted, moved,
+    rotated or scaled copy of the mesh gets the same points (issue 12). Sorted indices.
+    """
+    key = np.asarray(key, np.float64)
+    n = len(key)
+    if k >= n:
+        return np.arange(n)
+    order = np.argsort(key, kind="stable")
+    q = None if p is None else np.asarray(p, np.float64)[order] / float(np.sum(p))
+    pick = np.random.default_rng(seed).choice(n, size=k, replace=False, p=q)
+    return np.sort(order[pick])
 
 
 def candidates_from_pairs(pairs, region, n_regions):
@@ -79,6 +95,7 @@ class PipelineState:
     pairs: np.ndarray
     log: list = field(default_factory=list)
     medial: tuple | None = None     # (M (k, 3), rho (k,)): medial points of surface samples
+    key: np.ndarray | None = None   # (n,) numbering-free order of the vertices (geodesic f)
     _inside: object = None
 
     @property

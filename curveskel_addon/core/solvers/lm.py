@@ -233,8 +233,12 @@ class _Regulariser:
             pts, nrm = surface_points(surface[0], surface[1])
             if len(pts) > self.MAX_SURFACE_POINTS:
                 # k-NN queries from a joint equidistant to much of the surface (a cap centre)
-                # visit every such point: a fixed-size seeded subset bounds the cost.
-                keep = np.random.default_rng(0).choice(len(pts), self.MAX_SURFACE_POINTS, replace=False)
+                # visit every such point: a fixed-size subset bounds the cost. Every m-th point
+                # by distance from the centroid: the same points whatever their numbering,
+                # position, rotation or scale (issue 12).
+                r2 = np.einsum("ij,ij->i", pts - pts.mean(axis=0), pts - pts.mean(axis=0))
+                order = np.argsort(r2, kind="stable")
+                keep = order[np.linspace(0, len(pts) - 1, self.MAX_SURFACE_POINTS).astype(np.int64)]
                 pts, nrm = pts[keep], nrm[keep]
             self.pts, self.nrm = pts, nrm
             self.tree = cKDTree(pts)
