@@ -99,7 +99,9 @@ __all__ = ["quality", "sd_round_cone", "silhouette_sdf", "point_triangle_distanc
 #: Elements per temporary array in chunked pairwise evaluations (bounds memory to ~tens of MB).
 _CHUNK = 1 << 18
 #: Triangles per grid cell of the inside test (square cells; see _RayGrid).
-_CELL_FACES = 4.0
+_CELL_FACES = 2.0
+#: Cell width ratio between the levels of the inside test's grids (see _RayGrid).
+_LEVEL = 1.5
 
 
 # ---------------------------------------------------------------------------------------------
@@ -526,61 +528,93 @@ def bone_points(joints, bones, per_bone=10):
 # Inside / outside
 # ---------------------------------------------------------------------------------------------
 class _RayGrid:
-    """Triangles rotated by ``R`` and bucketed in a 2D grid orthogonal to the ray (+x after the
-    rotation); built once, then queried for any number of points."""
+    """Triangles rotated by ``R`` and bucketed in 2D grids orthogonal to the ray (+x after the
+    rotation); built once, then queried for any number of points.
+
+    Every triangle is stored once: in the finest of a stack of square grids (cells ``_LEVEL``
+    times wider from one level to the next; the finest at least as wide as the median triangle
+    and about ``_CELL_FACES`` triangles per cell of the bounding box) where it spans at most two
+    cells per axis, under the cell of its lower corner. A point then reads its own cell and the
+    three below / left of it on every level. One entry per triangle whatever its shape (the
+    long slivers of a cap would otherwise fill hundreds of cells each) and a radix sort make the
+    build O(faces) with a small constant: the pipeline's queries are a few thousand points, so
+    the build dominates.
+    """
 
     def __init__(self, V, F, R):
         self.R = R
-        Vr = V @ R.T
-        self.T = T = Vr[F]                             # (m, 3, 3)
-        a, b, c = T[:, 0, 1:], T[:, 1, 1:], T[:, 2, 1:]
+        self.Vr = Vr = V @ R.T
+        self.F = F
+        m = len(F)
+        Y = Vr[:, 1:]
+        a, b, c = Y[F[:, 0]], Y[F[:, 1]], Y[F[:, 2]]
         lo = np.minimum(np.minimum(a, b), c)
         hi = np.maximum(np.maximum(a, b), c)
-        self.glo = glo = Vr[:, 1:].min(axis=0)
-        self.ghi = Vr[:, 1:].max(axis=0)
-        # Square cells, about one per CELL_FACES triangles: a triangle then overlaps a few
-        # cells whatever the shape's extent (cells of bbox / sqrt(F) per axis are thin slivers
-        # on an elongated shape: 17 cells per triangle on a capsule, most of the build time).
+        del a, b, c
+        self.glo = glo = Y.min(axis=0) if len(Y) else np.zeros(2)
+        self.ghi = Y.max(axis=0) if len(Y) else np.zeros(2)
         ext = np.maximum(self.ghi - glo, 1e-300)
-        side = np.sqrt(ext[0] * ext[1] * _CELL_FACES / max(len(F), 1))
-        self.G = G = np.clip(np.ceil(ext / side), 1, 2048).astype(np.int64)     # (Gy, Gz)
-        self.cell = cell = ext / G
-        i0 = np.clip(((lo - glo) / cell).astype(np.int64), 0, G - 1)
-        i1 = np.clip(((hi - glo) / cell).astype(np.int64), 0, G - 1)
-        ny = i1[:, 0] - i0[:, 0] + 1
-        nz = i1[:, 1] - i0[:, 1] + 1
-        cnt = ny * nz
-        tri = np.repeat(np.arange(len(F)), cnt)
-        k = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-        nzt = nz[tri]
-        cid = (i0[tri, 0] + k // nzt) * G[1] + (i0[tri, 1] + k % nzt)
-        self.tri_sorted = tri[np.argsort(cid)]     # any order in a cell: parity is a count
-        self.starts = np.concatenate([[0], np.cumsum(np.bincount(cid, minlength=G[0] * G[1]))])
+        side = np.sqrt(ext[0] * ext[1] * _CELL_FACES / max(m, 1))
+        if m:
+            side = max(side, float(np.median((hi - lo).max(axis=1))))
+        self.levels = []
+        rest = np.arange(m)
+        while True:
+            G = np.clip(np.ceil(ext / max(side, 1e-300)), 1, 2048).astype(np.int64)
+            cell = ext / G
+            i0 = np.clip(((lo[rest] - glo) / cell).astype(np.int64), 0, G - 1)
+            i1 = np.clip(((hi[rest] - glo) / cell).astype(np.int64), 0, G - 1)
+            span = i1 - i0
+            here = (span[:, 0] <= 1) & (span[:, 1] <= 1)
+            key = i0[here, 0] * G[1] + i0[here, 1]
+            nc = int(G[0] * G[1])
+            tri = rest[here][_radix_argsort(key, nc)]
+            starts = np.concatenate([[0], np.cumsum(np.bincount(key, minlength=nc))])
+            self.levels.append((G, cell, tri, starts))
+            rest = rest[~here]
+            if not rest.size:
+                break
+            side *= _LEVEL
+
+    def _sources(self, P2):
+        """Per point (k, 2) (yz, rotated): (start, count, sorted triangles) lists: the cell of
+        the point and its three lower neighbours on every level."""
+        srcs = []
+        for G, cell, tri, starts in self.levels:
+            pc = np.clip(((P2 - self.glo) / cell).astype(np.int64), 0, G - 1)
+            for dy in (0, 1):
+                for dz in (0, 1):
+                    cy, cz = pc[:, 0] - dy, pc[:, 1] - dz
+                    ok = (cy >= 0) & (cz >= 0)
+                    cc = np.where(ok, cy * G[1] + cz, 0)
+                    s = starts[cc]
+                    srcs.append((s, np.where(ok, starts[cc + 1] - s, 0), tri))
+        return srcs
 
     def parity(self, P):
         """Parity of crossings of the ray from each point (n, 3) along the grid's direction."""
-        T, G, glo, ghi, cell = self.T, self.G, self.glo, self.ghi, self.cell
-        starts, tri_sorted = self.starts, self.tri_sorted
+        glo, ghi = self.glo, self.ghi
         Pr = P @ self.R.T
         parity = np.zeros(len(P), np.int64)
         pin = np.all((Pr[:, 1:] >= glo) & (Pr[:, 1:] <= ghi), axis=1)
         pids = np.flatnonzero(pin)
-        pc = np.clip(((Pr[pids, 1:] - glo) / cell).astype(np.int64), 0, G - 1)
-        pcell = pc[:, 0] * G[1] + pc[:, 1]
-        n_per = starts[pcell + 1] - starts[pcell]
-        step = _CHUNK
-        # expand (point, triangle) pairs in chunks of points
+        srcs = self._sources(Pr[pids, 1:])
+        n_per = sum(n for _, n, _ in srcs)
+        # expand (point, triangle) pairs in chunks of points of about _CHUNK pairs
         cum = np.cumsum(n_per)
         s = 0
         while s < len(pids):
-            e = int(np.searchsorted(cum, (cum[s - 1] if s else 0) + step, side="right"))
-            e = max(e, s + 1)
-            sel = np.arange(s, min(e, len(pids)))
-            npp = n_per[sel]
-            pp = np.repeat(pids[sel], npp)
-            off = np.arange(npp.sum()) - np.repeat(np.cumsum(npp) - npp, npp)
-            tt = tri_sorted[np.repeat(starts[pcell[sel]], npp) + off]
-            t = T[tt]
+            e = int(np.searchsorted(cum, (cum[s - 1] if s else 0) + _CHUNK, side="right"))
+            e = min(max(e, s + 1), len(pids))
+            pp_l, tt_l = [], []
+            for start, n, arr in srcs:
+                npp = n[s:e]
+                pp_l.append(np.repeat(pids[s:e], npp))
+                off = np.arange(npp.sum()) - np.repeat(np.cumsum(npp) - npp, npp)
+                tt_l.append(arr[np.repeat(start[s:e], npp) + off])
+            pp, tt = np.concatenate(pp_l), np.concatenate(tt_l)
+            s = e
+            t = self.Vr[self.F[tt]]                      # (pairs, 3, 3)
             py, pz = Pr[pp, 1], Pr[pp, 2]
             y, z = t[:, :, 1], t[:, :, 2]
             # edge functions of (py, pz) against the three edges in the yz-plane
@@ -593,8 +627,22 @@ class _RayGrid:
                 xh = (w0 * t[:, 0, 0] + w1 * t[:, 1, 0] + w2 * t[:, 2, 0]) / ws
             hit &= xh > Pr[pp, 0]
             parity += np.bincount(pp[hit], minlength=len(P))
-            s = int(sel[-1]) + 1
         return parity % 2
+
+
+def _radix_argsort(key, n_keys):
+    """Stable argsort of non-negative integer keys below ``n_keys`` by 16-bit radix passes
+    (numpy's stable sort of 16-bit integers is a counting sort: O(n), 2-3x faster than a
+    comparison sort of int64)."""
+    key = np.asarray(key, np.int64)
+    order = np.arange(len(key))
+    shift = 0
+    while True:
+        digit = ((key[order] >> shift) & 0xFFFF).astype(np.uint16)
+        order = order[np.argsort(digit, kind="stable")]
+        shift += 16
+        if (n_keys - 1) >> shift <= 0:
+            return order
 
 
 class InsideTest:
