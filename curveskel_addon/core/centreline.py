@@ -241,14 +241,31 @@ def fit_radii(V, w, X, bones, bone, t, *, smooth=0.01):
     r : (J,) float
     """
     X = np.asarray(X, np.float64)[:, :3]
-    J = len(X)
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
     i, j = bones[bone, 0], bones[bone, 1]
     sig = t[:, None] * X[i] + (1.0 - t[:, None]) * X[j]
     d = np.linalg.norm(V - sig, axis=1)
-    sw = np.sqrt(w)
-    A = _hat_matrix(bones, bone, t, J, sw)
-    AtA = (A.T @ A).tocsr()
-    rhs = A.T @ (sw * d)
+    return _radii_for_distances(d, w, len(X), bones, bone, t, smooth)
+
+
+def _radii_for_distances(d, w, J, bones, bone, t, smooth):
+    """fit_radii's solve for given distances ``d``: the normal equations A^T W A r = A^T W d of
+    the hat matrix A (row v: t at joint i, 1 - t at joint j of its bone) summed per bone
+    (three weighted sums of the points of each bone, O(n) by bincount) instead of building
+    the sparse n x J matrix: the same system up to the order of the sums."""
+    B = len(bones)
+    w = np.asarray(w, np.float64)
+    tw = w * t
+    uw = w * (1.0 - t)
+    Stt = np.bincount(bone, weights=tw * t, minlength=B)
+    Stu = np.bincount(bone, weights=tw * (1.0 - t), minlength=B)
+    Suu = np.bincount(bone, weights=uw * (1.0 - t), minlength=B)
+    bi, bj = bones[:, 0], bones[:, 1]
+    AtA = sp.csr_matrix((np.r_[Stt, Suu, Stu, Stu], (np.r_[bi, bj, bi, bj], np.r_[bi, bj, bj, bi])),
+                        shape=(J, J))
+    AtA.eliminate_zeros()
+    rhs = (np.bincount(bi, weights=np.bincount(bone, weights=tw * d, minlength=B), minlength=J)
+           + np.bincount(bj, weights=np.bincount(bone, weights=uw * d, minlength=B), minlength=J))
     mass = np.asarray(AtA.sum(axis=1)).ravel()
     floor = 0.05 * float(np.median(mass[mass > 0])) if np.any(mass > 0) else 1.0
     S, chain = chain_smoothness_rows(bones, J)
@@ -389,13 +406,13 @@ def fit_radii_surface(V, w, joints, bones, cand=None, *, rounds=SURFACE_RADII_RO
     X = np.asarray(joints, np.float64)[:, :3]
     bones = np.asarray(bones, np.int64).reshape(-1, 2)
     bone, t, _ = closest_on_bones(V, X, bones, cand)
-    r = fit_radii(V, w, X, bones, bone, t)
     i, j = bones[bone, 0], bones[bone, 1]
     d = np.linalg.norm(V - (t[:, None] * X[i] + (1.0 - t[:, None]) * X[j]), axis=1)
+    r = _radii_for_distances(d, w, len(X), bones, bone, t, 0.01)
     for _ in range(rounds):
         res = np.abs(d - (t * r[i] + (1.0 - t) * r[j]))
         floor = 1e-3 * max(float(np.median(res)), 1e-300)
-        r = fit_radii(V, w / np.maximum(res, floor), X, bones, bone, t)
+        r = _radii_for_distances(d, w / np.maximum(res, floor), len(X), bones, bone, t, 0.01)
     return r, bone, t
 
 

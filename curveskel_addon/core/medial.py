@@ -41,7 +41,15 @@ def surface_points(V, F):
     Returns
     -------
     points, normals : (k, 3) float
+
+    The last result is kept (one entry, checked against the arrays' identity, shapes and a
+    sample of their rows): the centring stage and the fit's containment term ask for the same
+    mesh's points in one run.
     """
+    hit = _last_surface(V, F)
+    if hit is not None:
+        return hit
+    key = (V, F)
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
     fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])       # 2 area * normal
@@ -55,7 +63,29 @@ def surface_points(V, F):
     pts = np.concatenate([V[used], V[F].mean(axis=1)])
     nrm = np.concatenate([vn[used], fn])
     nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+    pts.flags.writeable = False
+    nrm.flags.writeable = False
+    _SURFACE_CACHE[:] = [key, _fingerprint(*key), (pts, nrm)]
     return pts, nrm
+
+
+_SURFACE_CACHE: list = []
+
+
+def _fingerprint(V, F):
+    V, F = np.asarray(V), np.asarray(F)
+    sv, sf = max(1, len(V) // 257), max(1, len(F) // 257)
+    return V.shape, F.shape, V[::sv].tobytes(), F[::sf].tobytes()
+
+
+def _last_surface(V, F):
+    """The cached surface_points result if (V, F) are the same unchanged arrays."""
+    if not _SURFACE_CACHE:
+        return None
+    (V0, F0), fp, out = _SURFACE_CACHE
+    if V0 is not V or F0 is not F or _fingerprint(V, F) != fp:
+        return None
+    return out
 
 
 class MedialBalls:
@@ -86,7 +116,9 @@ class MedialBalls:
         pts, nrm = surface_points(V, F)
         # Vertices only: face centroids lie inside a faceted surface (a cylinder's, by its
         # sagitta), so a ball through vertices would always hold some and shrink to them.
-        n_used = len(np.unique(np.asarray(F, dtype=np.int64)))
+        used = np.zeros(len(V), bool)
+        used[np.asarray(F, dtype=np.int64).ravel()] = True
+        n_used = int(used.sum())
         self._pts, self._nrm = pts[:n_used], nrm[:n_used]
         # Leaves of 64: a ball centred on the medial axis is nearly equidistant from a whole
         # band of the surface and its k-NN query visits every leaf whose (non-tight) cell
@@ -136,7 +168,7 @@ class MedialBalls:
             if not ids.size:
                 break
             c = q[ids] - rho[ids, None] * n[ids]
-            dist, nb = self.tree.query(c, k=2)
+            dist, nb = self.tree.query(c, k=2, workers=-1)     # every core: same result
             # The nearest point other than q itself.
             first_is_q = nb[:, 0] == q_index[ids]
             p_idx = np.where(first_is_q, nb[:, 1], nb[:, 0])
