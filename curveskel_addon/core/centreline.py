@@ -154,7 +154,7 @@ def chain_smoothness_rows(bones, J):
 
 
 def fit_centreline(M, w, joints, bones, cand, *, smooth=1.0, anchor=None, anchor_weight=0.0,
-                   rounds=6, map_points=None, depth=None, depth_gain=0.25):
+                   rounds=6, map_points=None, depth=None, depth_gain=0.05):
     """Joint positions of the elastic curve through the medial points (module docstring).
 
     Parameters

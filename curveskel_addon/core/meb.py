@@ -24,7 +24,7 @@ import numpy as np
 
 from .errors import CurveSkelError
 
-__all__ = ["min_enclosing_ball", "ball_through"]
+__all__ = ["min_enclosing_ball", "ball_through", "size_of"]
 
 _INIT = 32        # size of the first working set
 _ADD = 32         # violators added per round
@@ -206,3 +206,19 @@ def min_enclosing_ball(P) -> tuple[np.ndarray, float]:
         pts = [tuple(q) for q in Q[cand].tolist()] + pts
     radius = float(np.sqrt(max(r2, float(d2.max()))))
     return c + o, radius
+
+
+def size_of(P) -> float:
+    """The size of a point set that no rotation, translation, reordering or permutation of the
+    points changes: the diameter of its minimum enclosing ball (the bounding box's diagonal,
+    used before, grows by up to 73 % when a shape is turned, which moved every contour level).
+
+    Examples
+    --------
+    >>> size_of(np.array([[0., 0, 0], [2, 0, 0], [1, 1, 0]]))
+    2.0
+    """
+    P = np.asarray(P, dtype=np.float64).reshape(-1, 3)
+    if len(P) == 0:
+        return 0.0
+    return 2.0 * float(min_enclosing_ball(P)[1])

@@ -30,7 +30,7 @@ class SkeletonParams:
     ----------
     spacing : float
         *Detail.* Distance between the cross-sections (Reeb contours) as a fraction of each
-        component's bounding-box diagonal: smaller finds smaller parts and gives more joints.
+        component's size (the diameter of its enclosing ball): smaller finds smaller parts and gives more joints.
         Refined automatically where a handle would otherwise be lost.
     smoothness : float
         *Smoothness* of the centred curve: weight of a chain joint's distance from the midpoint
@@ -81,7 +81,7 @@ class SkeletonParams:
         ``meta["input"]`` (``small_components_dropped`` ...).
     """
 
-    spacing: float = 0.02
+    spacing: float = 0.03
     smoothness: float = 0.5
     prune: float = 0.5
     max_joints: int = 150

@@ -30,6 +30,7 @@ from .centreline import centre_stage, fit_radii_surface, smooth_chains
 from .edit import contain_stage, edit_stage
 from .errors import CurveSkelError
 from .mapping import closest_on_bones
+from .meb import size_of
 from .mesh_graph import components
 from .mesh_input import clean_mesh
 from .params import SkeletonParams, check_params
@@ -111,7 +112,7 @@ class SkeletonRun:
             vids = order[starts[c]:starts[c + 1]]
             local[vids] = np.arange(len(vids))
             Fc = local[F[forder[fstarts[c]:fstarts[c + 1]]]]
-            # one seed for every component: seed 0 starts each pole search at the vertex nearest its
+            # one seed for every component: seed 0 starts each pole search at the vertex farthest from its
             # centroid, so the skeleton does not depend on how the components are numbered
             fa = first_approximation(V[vids], Fc, spacing=p.spacing, seed=p.seed)
             for stage, sec in fa.meta.get("timings", {}).items():
@@ -129,7 +130,7 @@ class SkeletonRun:
             key[vids] = fa.f if fa.f is not None else 0.0
             pairs.append(np.stack([breg_c + nr, np.arange(len(fa.bones)) + nb], axis=1))
             Vc = V[vids]
-            diag = float(np.linalg.norm(Vc.max(axis=0) - Vc.min(axis=0)))
+            diag = size_of(Vc)
             spacing.append(np.full(len(fa.bones), fa.meta.get("spacing_used", p.spacing) * diag))
             nj += len(fa.joints)
             nb += len(fa.bones)
@@ -155,7 +156,7 @@ class SkeletonRun:
 
     def _centre_and_edit(self) -> None:
         p, st = self.params, self.state
-        diag = float(np.linalg.norm(np.ptp(self.mesh.V, axis=0))) if len(self.mesh.V) else 1.0
+        diag = size_of(self.mesh.V) if len(self.mesh.V) else 1.0
         t0 = time.perf_counter()
         with self._timed("centre"):
             centre_stage(st, self._bone_spacing, smooth=p.smoothness, seed=p.seed)
@@ -237,7 +238,7 @@ class SkeletonRun:
             st.record("radii", time.perf_counter() - t0)
             t0 = time.perf_counter()
             with self._timed("contain"):
-                diag = float(np.linalg.norm(np.ptp(st.V, axis=0)))
+                diag = size_of(st.V)
                 self.contain_log = contain_stage(st, st.inside, st.medial, diag=diag)
             st.record("contain", time.perf_counter() - t0)
         # E after every stage (all vertices, each stage's own mapping); the last is the E of

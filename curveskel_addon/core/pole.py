@@ -85,7 +85,7 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int) -> t
     lengths : (e,) float
         Edge lengths (weights of the graph).
     seed : int
-        0: start at the vertex nearest the centroid (independent of vertex order, position,
+        0: start at the vertex farthest from the centroid (independent of vertex order, position,
         scale and rotation); otherwise the seed of a random first vertex
         (``np.random.default_rng(seed)``), as in the paper.
 
@@ -118,11 +118,11 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int) -> t
     if len(np.asarray(lengths)) != len(E):
         raise CurveSkelError(f"find_pole: {len(E)} edges but {len(lengths)} lengths")
     if seed == 0:
-        # The default start is the vertex nearest the centroid: the same vertex whatever the
-        # order of the vertices, their position, scale or rotation (issue 12). Any other seed
-        # draws the paper's random vertex.
+        # The default start is the vertex farthest from the centroid (the tip of some part):
+        # the same vertex whatever the order of the vertices, their position, scale or rotation
+        # (issue 12). Any other seed draws the paper's random vertex.
         c = V.mean(axis=0)
-        v1 = int(np.argmin(np.einsum("ij,ij->i", V - c, V - c)))
+        v1 = int(np.argmax(np.einsum("ij,ij->i", V - c, V - c)))
     else:
         v1 = int(np.random.default_rng(seed).integers(n))
     if len(E) == 0:

@@ -6,7 +6,8 @@ where the level set splits. We implement this discrete version instead:
 
 1. **f and levels.** f is the graph-geodesic distance from the pole (:mod:`pole`, which also
    explains how the pole is kept at the tip of an extremity). Levels are c_k = k * s,
-   k = 1..K, c_K < max f, with s = spacing * (bounding-box diagonal), but at least 6 and at most
+   k = 1..K, c_K < max f, with s = spacing * (the diameter of the component's minimum
+   enclosing ball: a size no rotation changes, :func:`.meb.size_of`), but at least 6 and at most
    400 levels (1600 after refinement). A vertex is *above* level c iff f >= c (this breaks ties
    of vertices lying exactly on a level); its *band* is the number of levels <= f.
 2. **Contour loops.** Every mesh edge (a, b) with f_a < c <= f_b gets a crossing point at the
@@ -71,7 +72,7 @@ from scipy.sparse.csgraph import connected_components
 
 from .errors import CurveSkelError
 from .mapping import closest_on_bones
-from .meb import min_enclosing_ball
+from .meb import min_enclosing_ball, size_of
 from .mesh_graph import edge_csr, edge_ids, edge_lengths, edge_table
 from .pole import find_pole
 
@@ -426,7 +427,8 @@ def first_approximation(V, F, *, spacing: float, seed: int) -> FirstApproximatio
         Its triangles: every vertex referenced, no triangle with a repeated index. The surface
         may be open or non-manifold.
     spacing : float
-        Distance between contour levels as a fraction of the component's bounding-box diagonal
+        Distance between contour levels as a fraction of the component's size (diameter of its
+        minimum enclosing ball)
         (adjusted to 6..400 levels, halved where a handle would be lost).
     seed : int
         Seed of the pole search (reproducible).
@@ -455,7 +457,7 @@ def first_approximation(V, F, *, spacing: float, seed: int) -> FirstApproximatio
     E, ecount = edge_table(F, n)
     pole, f = find_pole(V, E, edge_lengths(V, E), seed)
     timings["pole"] = time.perf_counter() - t0
-    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    diag = size_of(V)      # rotation-free size (the spacing's unit)
     f = np.where(np.isfinite(f), f, 0.0)
     maxf = float(f.max())
     meta = {"pole": int(pole), "timings": timings, "expected_cycles": None, "cycles": 0,

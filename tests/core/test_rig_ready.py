@@ -265,9 +265,9 @@ def test_box_bar_joints_along_the_medial_line_are_on_the_axis():
     assert off[inner].max() <= 0.05, off[inner].max()
 
 
-@pytest.mark.xfail(strict=True, reason="measured 2026-12-02 (975e5bf): the two end joints lie 0.31 "
-                   "and 0.62 of the width off the axis (the leaves go to corners of the end faces, where "
-                   "the Reeb graph's poles are)")
+@pytest.mark.xfail(strict=True, reason="measured 2026-12-02: the two end joints lie 0.51 and 0.20 "
+                   "of the width off the axis (the leaves go towards corners of the end faces, "
+                   "where the Reeb graph's poles are)")
 def test_box_bar_is_straight_to_its_ends():
     off, _ = _bar_offaxis()
     assert off.max() <= 0.05, off.max()
@@ -301,9 +301,9 @@ def test_bent_tube_is_one_smooth_chain():
 # -- every procedural shape against its analytic curve --------------------------------------------
 #: measured 2026-12-02 when written (to_ref_mean / from_ref_mean, / D); xfail where > 0.005
 _CURVE_XFAIL = {
-    "torus": "to_ref 0.0053 D, from_ref 0.0054 D (centred curve before the fit 0.0089 / 0.0090)",
-    "plate_with_holes": "to_ref 0.029 D, from_ref 0.025 D (max 0.11 / 0.07)",
-    "box_bar": "to_ref 0.0071 D (the end bones run to corners), from_ref 0.0017 D",
+    "plate_with_holes": "measured 2026-12-02: to_ref 0.021 D, from_ref 0.015 D (max 0.070 / 0.052): "
+                        "the Reeb graph from a pole at the plate's end adds tails where the rings "
+                        "have their outer arcs",
 }
 
 
