@@ -419,10 +419,12 @@ def edit_stage(state, *, prune, simplify, max_joints, diag):
         out["pruned_joints"] = int(n0 - len(state.joints))
 
     def merge(tol_scale):
-        # a fraction of the local radius, capped at a fraction of the size (both grow together)
-        cap = C["merge_max_diag"] * diag * tol_scale / C["merge_radius_fraction"]
+        # a fraction of the local radius, capped at a fraction of the size, and the longest
+        # merged bone: all three grow together when the joint budget asks for fewer joints
+        grow = max(tol_scale / C["merge_radius_fraction"], 1.0)
+        cap = C["merge_max_diag"] * diag * grow
         tol = np.minimum(tol_scale * state.joints[:, 3], cap)
-        j, b, m = merge_chains(state.joints, state.bones, tol, C["merge_max_length"] * diag)
+        j, b, m = merge_chains(state.joints, state.bones, tol, C["merge_max_length"] * diag * grow)
         state.joints, state.bones = j, b
         state.apply_bone_map(m)
         _refit(state)
@@ -469,7 +471,7 @@ def _outside_per_bone(inside_test, joints, bones, k):
     return ~inside_test(P.reshape(-1, 3)).reshape(len(bones), k), u
 
 
-def contain_stage(state, inside_test, medial, *, diag):
+def contain_stage(state, inside_test, medial, *, diag, max_joints=0):
     """Keep the bones inside the mesh (in place): trim leaf bones whose tip lies outside,
     then split bones that leave the mesh at the medial point nearest to where they leave.
 
@@ -482,6 +484,7 @@ def contain_stage(state, inside_test, medial, *, diag):
     inside_test : callable (k, 3) -> (k,) bool (exact: :class:`.quality.InsideTest`)
     medial : (M (m, 3), rho (m,)) medial points and radii of surface samples
     diag : float, the size (D) for the fold measure
+    max_joints : int, the joint budget (0: none): splits stop before exceeding it
 
     Returns
     -------
@@ -561,6 +564,8 @@ def contain_stage(state, inside_test, medial, *, diag):
             for q in order:
                 if not better[q]:
                     continue
+                if max_joints and len(X) + 2 * (take.sum() + 1) > max_joints:
+                    break
                 take[q] = True
                 sel = np.flatnonzero(take)
                 cj, cb = _split_three(X, bones, bad[sel], M, rho, n1[sel], n2[sel])

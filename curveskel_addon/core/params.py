@@ -81,7 +81,7 @@ class SkeletonParams:
         ``meta["input"]`` (``small_components_dropped`` ...).
     """
 
-    spacing: float = 0.03
+    spacing: float = 0.025
     smoothness: float = 0.5
     prune: float = 0.5
     max_joints: int = 150

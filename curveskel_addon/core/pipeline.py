@@ -239,7 +239,8 @@ class SkeletonRun:
             t0 = time.perf_counter()
             with self._timed("contain"):
                 diag = size_of(st.V)
-                self.contain_log = contain_stage(st, st.inside, st.medial, diag=diag)
+                self.contain_log = contain_stage(st, st.inside, st.medial, diag=diag,
+                                                 max_joints=self.params.max_joints)
             st.record("contain", time.perf_counter() - t0)
         # E after every stage (all vertices, each stage's own mapping); the last is the E of
         # the returned skeleton with its returned mapping. The fit's iterations are in meta.

@@ -132,3 +132,16 @@ def test_bad_parameters_are_reported_clearly(capsule_mesh):
         skeletonize(V, F, solver="newton")
     with pytest.raises(CurveSkelError, match="spacing"):
         skeletonize(V, F, spacing=0)
+
+
+@pytest.mark.parametrize("budget", [12, 25])
+def test_joint_budget_is_met_and_keeps_the_topology(budget):
+    """max_joints holds for the returned skeleton (the containment repair's splits included)
+    while every arm of the star stays an arm."""
+    from meshes import star
+    V, F = star()
+    free = skeletonize(V, F, spacing=0.01, max_joints=0)
+    assert len(free.joints) > 25                                # the budget has work to do
+    sk = skeletonize(V, F, spacing=0.01, max_joints=budget)
+    assert len(sk.joints) <= budget
+    assert (sk.degree() == 1).sum() == 4 and graph_figures(sk) == (1, 0)
