@@ -102,6 +102,8 @@ _CHUNK = 1 << 18
 _CELL_FACES = 2.0
 #: Cell width ratio between the levels of the inside test's grids (see _RayGrid).
 _LEVEL = 1.5
+#: ... the finest cells at least this many median triangle extents wide.
+_SIDE_MEDIAN = 1.0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -531,14 +533,14 @@ class _RayGrid:
     """Triangles rotated by ``R`` and bucketed in 2D grids orthogonal to the ray (+x after the
     rotation); built once, then queried for any number of points.
 
-    Every triangle is stored once: in the finest of a stack of square grids (cells ``_LEVEL``
-    times wider from one level to the next; the finest at least as wide as the median triangle
-    and about ``_CELL_FACES`` triangles per cell of the bounding box) where it spans at most two
-    cells per axis, under the cell of its lower corner. A point then reads its own cell and the
-    three below / left of it on every level. One entry per triangle whatever its shape (the
-    long slivers of a cap would otherwise fill hundreds of cells each) and a radix sort make the
-    build O(faces) with a small constant: the pipeline's queries are a few thousand points, so
-    the build dominates.
+    Every triangle is stored in one level only: the finest of a stack of square grids (cells
+    ``_LEVEL`` times wider from one level to the next; the finest at least as wide as the median
+    triangle and about ``_CELL_FACES`` triangles per cell of the bounding box) where it spans at
+    most two cells per axis, in the 1-4 cells it overlaps there. A point then reads its own
+    cell on every level. At most 4 entries per triangle whatever its shape (the long slivers of
+    a cap would otherwise fill hundreds of cells each) and a radix sort make the build O(faces)
+    with a small constant: the pipeline's queries are a few thousand points, so the build
+    dominates.
     """
 
     def __init__(self, V, F, R):
@@ -556,8 +558,9 @@ class _RayGrid:
         ext = np.maximum(self.ghi - glo, 1e-300)
         side = np.sqrt(ext[0] * ext[1] * _CELL_FACES / max(m, 1))
         if m:
-            side = max(side, float(np.median((hi - lo).max(axis=1))))
+            side = max(side, _SIDE_MEDIAN * float(np.median((hi - lo).max(axis=1))))
         self.levels = []
+        tris, n_prev = [], 0
         rest = np.arange(m)
         while True:
             G = np.clip(np.ceil(ext / max(side, 1e-300)), 1, 2048).astype(np.int64)
@@ -566,30 +569,36 @@ class _RayGrid:
             i1 = np.clip(((hi[rest] - glo) / cell).astype(np.int64), 0, G - 1)
             span = i1 - i0
             here = (span[:, 0] <= 1) & (span[:, 1] <= 1)
-            key = i0[here, 0] * G[1] + i0[here, 1]
+            # each triangle of this level in every cell it overlaps (1, 2 or 4)
+            h_i0, h_span, h_tri = i0[here], span[here], rest[here]
+            keys, ids = [], []
+            for a, b in ((0, 0), (0, 1), (1, 0), (1, 1)):
+                sel = (h_span[:, 0] >= a) & (h_span[:, 1] >= b)
+                keys.append((h_i0[sel, 0] + a) * G[1] + h_i0[sel, 1] + b)
+                ids.append(h_tri[sel])
+            key, ids = np.concatenate(keys), np.concatenate(ids)
             nc = int(G[0] * G[1])
-            tri = rest[here][_radix_argsort(key, nc)]
-            starts = np.concatenate([[0], np.cumsum(np.bincount(key, minlength=nc))])
-            self.levels.append((G, cell, tri, starts))
+            tris.append(ids[_radix_argsort(key, nc)])
+            # cell starts into the concatenation of every level's sorted triangles
+            starts = np.concatenate([[0], np.cumsum(np.bincount(key, minlength=nc))]) + n_prev
+            n_prev += len(tris[-1])
+            self.levels.append((G, cell, starts))
             rest = rest[~here]
             if not rest.size:
                 break
             side *= _LEVEL
+        self.tri = np.concatenate(tris)
 
     def _sources(self, P2):
-        """Per point (k, 2) (yz, rotated): (start, count, sorted triangles) lists: the cell of
-        the point and its three lower neighbours on every level."""
-        srcs = []
-        for G, cell, tri, starts in self.levels:
+        """Per point (k, 2) (yz, rotated): (k, levels) starts and counts in ``self.tri`` of
+        the triangles of the point's cell on every level."""
+        S, N = [], []
+        for G, cell, starts in self.levels:
             pc = np.clip(((P2 - self.glo) / cell).astype(np.int64), 0, G - 1)
-            for dy in (0, 1):
-                for dz in (0, 1):
-                    cy, cz = pc[:, 0] - dy, pc[:, 1] - dz
-                    ok = (cy >= 0) & (cz >= 0)
-                    cc = np.where(ok, cy * G[1] + cz, 0)
-                    s = starts[cc]
-                    srcs.append((s, np.where(ok, starts[cc + 1] - s, 0), tri))
-        return srcs
+            cc = pc[:, 0] * G[1] + pc[:, 1]
+            S.append(starts[cc])
+            N.append(starts[cc + 1] - starts[cc])
+        return np.stack(S, axis=1), np.stack(N, axis=1)
 
     def parity(self, P):
         """Parity of crossings of the ray from each point (n, 3) along the grid's direction."""
@@ -598,21 +607,18 @@ class _RayGrid:
         parity = np.zeros(len(P), np.int64)
         pin = np.all((Pr[:, 1:] >= glo) & (Pr[:, 1:] <= ghi), axis=1)
         pids = np.flatnonzero(pin)
-        srcs = self._sources(Pr[pids, 1:])
-        n_per = sum(n for _, n, _ in srcs)
+        S, N = self._sources(Pr[pids, 1:])
+        n_per = N.sum(axis=1)
         # expand (point, triangle) pairs in chunks of points of about _CHUNK pairs
         cum = np.cumsum(n_per)
         s = 0
         while s < len(pids):
             e = int(np.searchsorted(cum, (cum[s - 1] if s else 0) + _CHUNK, side="right"))
             e = min(max(e, s + 1), len(pids))
-            pp_l, tt_l = [], []
-            for start, n, arr in srcs:
-                npp = n[s:e]
-                pp_l.append(np.repeat(pids[s:e], npp))
-                off = np.arange(npp.sum()) - np.repeat(np.cumsum(npp) - npp, npp)
-                tt_l.append(arr[np.repeat(start[s:e], npp) + off])
-            pp, tt = np.concatenate(pp_l), np.concatenate(tt_l)
+            nn = N[s:e].ravel()
+            pp = np.repeat(np.repeat(pids[s:e], N.shape[1]), nn)
+            off = np.arange(nn.sum()) - np.repeat(np.cumsum(nn) - nn, nn)
+            tt = self.tri[np.repeat(S[s:e].ravel(), nn) + off]
             s = e
             t = self.Vr[self.F[tt]]                      # (pairs, 3, 3)
             py, pz = Pr[pp, 1], Pr[pp, 2]

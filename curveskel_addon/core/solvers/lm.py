@@ -298,7 +298,7 @@ class _Regulariser:
         X = self.W @ joints
         x = X[:, :3]
         k = min(self.K, len(self.pts))
-        dist, idx = self.tree.query(x, k=k, workers=-1)       # every core: same result
+        dist, idx = self.tree.query(x, k=k)
         dist, idx = dist.reshape(len(x), k), idx.reshape(len(x), k)
         diff = x[:, None, :] - self.pts[idx]                       # (J, k, 3)
         n = self.nrm[idx]
