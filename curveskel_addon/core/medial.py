@@ -52,7 +52,8 @@ def surface_points(V, F):
     key = (V, F)
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
-    fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])       # 2 area * normal
+    A, B, C = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    fn = np.cross(B - A, C - A)                                            # 2 area * normal
     # bincount sums in the same order as np.add.at over F[:, 0], F[:, 1], F[:, 2] (identical
     # result), 10-20x faster
     idx = F.T.ravel()
@@ -60,7 +61,10 @@ def surface_points(V, F):
                    for c in range(3)], axis=1) if len(F) else np.zeros_like(V)
     used = np.zeros(len(V), dtype=bool)
     used[F.ravel()] = True
-    pts = np.concatenate([V[used], V[F].mean(axis=1)])
+    # centroids: (A + B + C) / 3 is what V[F].mean(axis=1) computes (same order), without the
+    # (m, 3, 3) gather
+    pts = np.concatenate([V[used], (A + B + C) / 3.0])
+    del A, B, C
     nrm = np.concatenate([vn[used], fn])
     nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
     pts.flags.writeable = False

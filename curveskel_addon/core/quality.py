@@ -569,19 +569,31 @@ class _RayGrid:
             i1 = np.clip(((hi[rest] - glo) / cell).astype(np.int64), 0, G - 1)
             span = i1 - i0
             here = (span[:, 0] <= 1) & (span[:, 1] <= 1)
-            # each triangle of this level in every cell it overlaps (1, 2 or 4)
+            # each triangle of this level in every cell it overlaps (1, 2 or 4): one sort of the
+            # triangles by their lower corner's cell; the four runs (corner, +z, +y, +y+z cell)
+            # are then each sorted by cell (a shift keeps the order) and are scattered into cell
+            # order by counting, without sorting the entries
             h_i0, h_span, h_tri = i0[here], span[here], rest[here]
-            keys, ids = [], []
+            nc = int(G[0] * G[1])
+            base = h_i0[:, 0] * G[1] + h_i0[:, 1]
+            o = _radix_argsort(base, nc)
+            base, h_span, h_tri = base[o], h_span[o], h_tri[o]
+            runs = []
             for a, b in ((0, 0), (0, 1), (1, 0), (1, 1)):
                 sel = (h_span[:, 0] >= a) & (h_span[:, 1] >= b)
-                keys.append((h_i0[sel, 0] + a) * G[1] + h_i0[sel, 1] + b)
-                ids.append(h_tri[sel])
-            key, ids = np.concatenate(keys), np.concatenate(ids)
-            nc = int(G[0] * G[1])
-            tris.append(ids[_radix_argsort(key, nc)])
+                k = base[sel] + (a * G[1] + b)
+                runs.append((k, h_tri[sel], np.bincount(k, minlength=nc)))
+            starts = np.concatenate([[0], np.cumsum(sum(c for _, _, c in runs))])
+            out = np.empty(int(starts[-1]), np.int64)
+            before = np.zeros(nc, np.int64)
+            for k, t, c in runs:
+                rank = np.arange(len(k)) - (np.cumsum(c) - c)[k]     # rank in its cell's run
+                out[starts[k] + before[k] + rank] = t
+                before += c
+            tris.append(out)
             # cell starts into the concatenation of every level's sorted triangles
-            starts = np.concatenate([[0], np.cumsum(np.bincount(key, minlength=nc))]) + n_prev
-            n_prev += len(tris[-1])
+            starts = starts + n_prev
+            n_prev += len(out)
             self.levels.append((G, cell, starts))
             rest = rest[~here]
             if not rest.size:
