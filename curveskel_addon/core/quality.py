@@ -548,7 +548,7 @@ class _RayGrid:
         self.Vr = Vr = V @ R.T
         self.F = F
         m = len(F)
-        Y = Vr[:, 1:]
+        Y = np.ascontiguousarray(Vr[:, 1:])            # gathers from a contiguous copy
         a, b, c = Y[F[:, 0]], Y[F[:, 1]], Y[F[:, 2]]
         lo = np.minimum(np.minimum(a, b), c)
         hi = np.maximum(np.maximum(a, b), c)
@@ -561,13 +561,16 @@ class _RayGrid:
             side = max(side, _SIDE_MEDIAN * float(np.median((hi - lo).max(axis=1))))
         self.levels = []
         tris, n_prev = [], 0
-        rest = np.arange(m)
+        rest = np.arange(m, dtype=np.int32 if m < 2**31 else np.int64)
+        lo_r, hi_r = lo, hi
         while True:
             G = np.clip(np.ceil(ext / max(side, 1e-300)), 1, 2048).astype(np.int64)
             cell = ext / G
-            i0 = np.clip(((lo[rest] - glo) / cell).astype(np.int64), 0, G - 1)
-            i1 = np.clip(((hi[rest] - glo) / cell).astype(np.int64), 0, G - 1)
-            span = i1 - i0
+            i0 = ((lo_r - glo) / cell).astype(np.int32)
+            np.clip(i0, 0, (G - 1).astype(np.int32), out=i0)
+            span = ((hi_r - glo) / cell).astype(np.int32)
+            np.clip(span, 0, (G - 1).astype(np.int32), out=span)
+            span -= i0
             here = (span[:, 0] <= 1) & (span[:, 1] <= 1)
             # each triangle of this level in every cell it overlaps (1, 2 or 4): one sort of the
             # triangles by their lower corner's cell; the four runs (corner, +z, +y, +y+z cell)
@@ -575,7 +578,7 @@ class _RayGrid:
             # order by counting, without sorting the entries
             h_i0, h_span, h_tri = i0[here], span[here], rest[here]
             nc = int(G[0] * G[1])
-            base = h_i0[:, 0] * G[1] + h_i0[:, 1]
+            base = h_i0[:, 0].astype(np.int64) * G[1] + h_i0[:, 1]
             o = _radix_argsort(base, nc)
             base, h_span, h_tri = base[o], h_span[o], h_tri[o]
             runs = []
@@ -584,7 +587,7 @@ class _RayGrid:
                 k = base[sel] + (a * G[1] + b)
                 runs.append((k, h_tri[sel], np.bincount(k, minlength=nc)))
             starts = np.concatenate([[0], np.cumsum(sum(c for _, _, c in runs))])
-            out = np.empty(int(starts[-1]), np.int64)
+            out = np.empty(int(starts[-1]), rest.dtype)
             before = np.zeros(nc, np.int64)
             for k, t, c in runs:
                 rank = np.arange(len(k)) - (np.cumsum(c) - c)[k]     # rank in its cell's run
@@ -595,7 +598,8 @@ class _RayGrid:
             starts = starts + n_prev
             n_prev += len(out)
             self.levels.append((G, cell, starts))
-            rest = rest[~here]
+            far = ~here
+            rest, lo_r, hi_r = rest[far], lo_r[far], hi_r[far]
             if not rest.size:
                 break
             side *= _LEVEL
