@@ -41,15 +41,30 @@ MODIFIER_NAME = "CurveSkel Armature"
 HEAT_SLOW_VERTICES = 10_000
 
 
+def _attribute(me, name, domain, data_type):
+    a = me.attributes.get(name)
+    return a if a is not None and a.domain == domain and a.data_type == data_type else None
+
+
 def _vertices(me) -> np.ndarray:
     co = np.empty(len(me.vertices) * 3, dtype=np.float32)
-    me.vertices.foreach_get("co", co)
+    # the "position" attribute is a plain copy; vertices.co goes through RNA item by item
+    a = _attribute(me, "position", 'POINT', 'FLOAT_VECTOR')
+    if a is not None:
+        a.data.foreach_get("vector", co)
+    else:
+        me.vertices.foreach_get("co", co)
     return co.reshape(-1, 3).astype(np.float64)
 
 
 def _edges(me) -> np.ndarray:
     e = np.empty(len(me.edges) * 2, dtype=np.int32)
-    me.edges.foreach_get("vertices", e)
+    # ".edge_verts" (Blender 4.0+): a plain copy, ~300x faster than edges.foreach_get("vertices")
+    a = _attribute(me, ".edge_verts", 'EDGE', 'INT32_2D')
+    if a is not None:
+        a.data.foreach_get("value", e)
+    else:
+        me.edges.foreach_get("vertices", e)
     return e.reshape(-1, 2).astype(np.int64)
 
 
@@ -121,29 +136,46 @@ def write_weights(mesh_obj, group_names, index, weight) -> None:
     weight : (n, k) float
     """
     me = mesh_obj.data
-    gid = []
+    # remove first, then create: removing a group renumbers the groups after it
     for g in group_names:
         vg = mesh_obj.vertex_groups.get(g)
         if vg is not None:
             mesh_obj.vertex_groups.remove(vg)
-        vg = mesh_obj.vertex_groups.new(name=g)
+    made = [mesh_obj.vertex_groups.new(name=g) for g in group_names]
+    for vg, g in zip(made, group_names):
         if vg.name != g:
             raise CurveSkelError(f"vertex group name '{g}' is taken")
-        gid.append(vg.index)
-    gid = np.asarray(gid, np.int64)
+    gid = np.asarray([vg.index for vg in made], np.int64)
     n = len(index)
     k = int((index >= 0).sum(axis=1).max()) if n else 0
     gidx = np.where(index[:, :k] >= 0, gid[np.maximum(index[:, :k], 0)] if len(gid) else -1, -1)
     bm = bmesh.new()
     try:
-        bm.from_mesh(me)
+        # no normals: only the deform layer is written back (the mesh recomputes its normals)
+        bm.from_mesh(me, face_normals=False, vertex_normals=False)
         dl = bm.verts.layers.deform.verify()
         deform = [v[dl] for v in bm.verts]
-        # column by column: one flat loop per influence rank (3x faster than a nested loop)
+        # flat loops, no nested one: the vertices with one influence, those with two (most of
+        # them: a bone and its neighbour across a joint), then any other column by column
+        valid = gidx >= 0
+        count = valid.sum(axis=1)
+        prefix = (valid == (np.arange(k)[None, :] < count[:, None])).all(axis=1)
+        one = np.flatnonzero(prefix & (count == 1))
+        two = np.flatnonzero(prefix & (count == 2)) if k >= 2 else np.zeros(0, np.int64)
+        for d, g, w in zip([deform[r] for r in one.tolist()], gidx[one, 0].tolist(),
+                           weight[one, 0].tolist()):
+            d[g] = w
+        if len(two):
+            for d, g0, w0, g1, w1 in zip([deform[r] for r in two.tolist()], gidx[two, 0].tolist(),
+                                         weight[two, 0].tolist(), gidx[two, 1].tolist(),
+                                         weight[two, 1].tolist()):
+                d[g0] = w0
+                d[g1] = w1
+        other = ~np.isin(np.arange(n), np.concatenate([one, two])) & (count > 0)
         for c in range(k):
-            rows = np.flatnonzero(gidx[:, c] >= 0)
-            targets = deform if len(rows) == n else [deform[r] for r in rows.tolist()]
-            for d, g, w in zip(targets, gidx[rows, c].tolist(), weight[rows, c].tolist()):
+            rows = np.flatnonzero(other & valid[:, c])
+            for d, g, w in zip([deform[r] for r in rows.tolist()], gidx[rows, c].tolist(),
+                               weight[rows, c].tolist()):
                 d[g] = w
         bm.to_mesh(me)
     finally:

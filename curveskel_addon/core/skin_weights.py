@@ -160,32 +160,51 @@ def smooth_weights(index, weight, edges, *, iterations: int = 10,
         raise CurveSkelError(f"index {index.shape} and weight {weight.shape} must be equal (n, k) arrays")
     if len(E) and (E.min() < 0 or E.max() >= n):
         raise CurveSkelError("edge vertex index out of range")
+    return _smooth(index, weight, _Graph(E, n) if iterations > 0 and len(E) else None, iterations,
+                   max_influences, prune)
+
+
+def _smooth(index, weight, graph, iterations, max_influences, prune):
+    """:func:`smooth_weights` on a built graph (None or ``iterations`` 0: no diffusion)."""
+    n = len(index)
     nb = int(index.max()) + 1 if index.size else 0
     ok = index >= 0
     rows = np.broadcast_to(np.arange(n)[:, None], index.shape)
     W = sp.csr_matrix((weight[ok], (rows[ok], index[ok])), shape=(n, max(nb, 1)))
-    if iterations > 0 and len(E):
-        E = E[E[:, 0] != E[:, 1]]
-        A = sp.coo_matrix((np.ones(2 * len(E)), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])),
-                          shape=(n, n)).tocsr()
-        A.data[:] = 1.0                                     # duplicate edges count once
-        deg = np.asarray(A.sum(axis=1)).ravel()
-        S = (sp.diags(1.0 / (deg + 1.0)) @ (A + sp.identity(n, format="csr"))).tocsr()
+    if iterations > 0 and graph is not None:
+        S = graph.averaging()
+        W.indices, W.indptr = W.indices.astype(S.indices.dtype), W.indptr.astype(S.indptr.dtype)
         for _ in range(int(iterations)):
-            W = S @ W
+            W = S @ W                          # drops the zeros pruned by the previous step
             W.data[W.data < prune] = 0.0
-            W.eliminate_zeros()
-    W = W.tocsr()
-    W.sort_indices()
-    r = np.repeat(np.arange(n), np.diff(W.indptr))
-    order = np.lexsort((-W.data, r))                        # per row, largest first
-    rank = np.arange(len(order)) - W.indptr[r[order]]
-    sel = rank < max_influences
-    keep, rk = order[sel], rank[sel]
+        W.eliminate_zeros()
+    return _largest(W, max_influences)
+
+
+def _largest(W, max_influences):
+    """Per row of the CSR matrix W, the ``max_influences`` largest entries (ties: the lower
+    column first), normalised to sum 1: (index, weight), -1 / 0 where unused."""
+    n = W.shape[0]
+    W.sum_duplicates()                          # canonical: columns sorted in each row
+    count = np.diff(W.indptr)
+    K = int(count.max()) if n else 0
     out_i = np.full((n, max_influences), -1, np.int64)
     out_w = np.zeros((n, max_influences))
-    out_i[r[keep], rk] = W.indices[keep]
-    out_w[r[keep], rk] = W.data[keep]
+    if K:
+        r = np.repeat(np.arange(n), count)
+        pos = np.arange(len(r)) - W.indptr[r]
+        val = np.full((n, K), -np.inf)
+        val[r, pos] = W.data
+        col = np.zeros((n, K), np.int64)
+        col[r, pos] = W.indices
+        rank = np.arange(n)
+        for j in range(min(max_influences, K)):
+            best = np.argmax(val, axis=1)        # the first of equal values: the lower column
+            v = val[rank, best]
+            has = v > -np.inf
+            out_i[has, j] = col[has, best[has]]
+            out_w[has, j] = v[has]
+            val[rank, best] = -np.inf
     total = out_w.sum(axis=1, keepdims=True)
     out_w = np.divide(out_w, total, out=np.zeros_like(out_w), where=total > 0)
     return out_i, out_w
@@ -278,27 +297,22 @@ def bone_partners(heads, tails, parent, deform=None, *, tol=None):
     tail_mode = np.zeros(R, np.int64)
     head_partner = np.full(R, -1, np.int64)
     tail_partner = np.full(R, -1, np.int64)
-    attached = np.zeros(R, bool)
-    at_tail: dict[int, list[int]] = {}
     n_kids = np.bincount(par[(par >= 0) & deform], minlength=R) if R else np.zeros(0, np.int64)
-    for r in range(R):
-        p = int(par[r])
-        if p < 0 or not deform[r] or not deform[p]:
-            continue
-        if np.linalg.norm(H[r] - T[p]) <= tol:
-            at_tail.setdefault(p, []).append(r)
-            attached[r] = True
-        elif np.linalg.norm(H[r] - H[p]) <= tol:
-            head_mode[r], head_partner[r] = BLEND_HUB, p
-            attached[r] = True
-    for p, kids in at_tail.items():
-        if len(kids) == 1 and n_kids[p] == 1:          # a chain joint: the parent's only child
-            c = kids[0]
-            tail_mode[p], tail_partner[p] = BLEND_SYMMETRIC, c
-            head_mode[c], head_partner[c] = BLEND_SYMMETRIC, p
-        else:
-            for c in kids:
-                head_mode[c], head_partner[c] = BLEND_HUB, p
+    pp = np.maximum(par, 0)
+    live = (par >= 0) & deform & deform[pp] if R else np.zeros(0, bool)
+    on_tail = live & (np.linalg.norm(H - T[pp], axis=1) <= tol)
+    on_head = live & ~on_tail & (np.linalg.norm(H - H[pp], axis=1) <= tol)
+    attached = on_tail | on_head
+    head_mode[on_head], head_partner[on_head] = BLEND_HUB, par[on_head]
+    # a chain joint: the parent's only (deforming) child, on its tail; other children on the
+    # tail hand over to the parent (a junction)
+    tail_kids = np.bincount(par[on_tail], minlength=R) if R else np.zeros(0, np.int64)
+    chain = on_tail & (tail_kids[pp] == 1) & (n_kids[pp] == 1)
+    hub = on_tail & ~chain
+    head_mode[hub], head_partner[hub] = BLEND_HUB, par[hub]
+    c = np.flatnonzero(chain)
+    head_mode[c], head_partner[c] = BLEND_SYMMETRIC, par[c]
+    tail_mode[par[c]], tail_partner[par[c]] = BLEND_SYMMETRIC, c
     return head_mode, tail_mode, head_partner, tail_partner, attached
 
 
@@ -310,15 +324,6 @@ def _closest_on_segments(P, A, B):
     s = np.clip(np.where(L2 > 0, s, 0.0), 0.0, 1.0)
     Q = A + s[:, None] * D
     return s, np.einsum("ij,ij->i", P - Q, P - Q)
-
-
-def _edge_graph(V, E, n):
-    E = E[E[:, 0] != E[:, 1]]
-    w = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)
-    w = np.maximum(w, 1e-12)
-    G = sp.coo_matrix((np.r_[w, w], (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])),
-                      shape=(n, n)).tocsr()
-    return G, E
 
 
 def surface_labels(V, edges, heads, tails, deform=None, *, k: int = 8):
@@ -342,7 +347,7 @@ def surface_labels(V, edges, heads, tails, deform=None, *, k: int = 8):
     deform : (R,) bool, optional
         Bones that may carry vertices (default all).
     k : int
-        Candidate bones per vertex for the closest-bone search.
+        Not used (kept for callers): every deforming bone is scored for every vertex.
 
     Returns
     -------
@@ -356,40 +361,162 @@ def surface_labels(V, edges, heads, tails, deform=None, *, k: int = 8):
         The closest bone of each vertex (before the surface restriction).
     """
     P = np.asarray(V, dtype=np.float64).reshape(-1, 3)
-    n = len(P)
     H = np.asarray(heads, dtype=np.float64).reshape(-1, 3)
     T = np.asarray(tails, dtype=np.float64).reshape(-1, 3)
-    R = len(H)
-    deform = np.ones(R, bool) if deform is None else np.asarray(deform, bool).ravel()
+    deform = np.ones(len(H), bool) if deform is None else np.asarray(deform, bool).ravel()
+    return _labels(P, _Graph(np.asarray(edges, dtype=np.int64).reshape(-1, 2), len(P)), H, T, deform)
+
+
+# == one bind's shared work: the edge graph built once, the closest bone without a KD-tree =========
+class _Graph:
+    """The mesh's edge graph, built once per bind: CSR arrays of the closed 1-ring (each vertex
+    and its neighbours, columns sorted, duplicate edges once) and the undirected edges."""
+
+    __slots__ = ("n", "edges", "indptr", "indices", "rows", "diag", "deg")
+
+    def __init__(self, E, n):
+        E = np.asarray(E, dtype=np.int64).reshape(-1, 2)
+        E = E[E[:, 0] != E[:, 1]]
+        ar = np.arange(n, dtype=np.int64)
+        rows, cols = np.r_[E[:, 0], E[:, 1], ar], np.r_[E[:, 1], E[:, 0], ar]
+        C = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+        C.sort_indices()
+        self.n = n
+        self.edges = E
+        self.indptr = C.indptr.astype(np.int64)
+        self.indices = C.indices.astype(np.int64)
+        counts = np.diff(self.indptr)
+        self.rows = np.repeat(ar, counts)
+        self.diag = self.indices == self.rows
+        self.deg = counts - 1
+
+    def nearest(self, P, kept):
+        """For each vertex, the kept vertex nearest along the edges (edge length at least
+        1e-12; -1 where none is reached).
+
+        Only the vertices not kept and their kept neighbours take part: the shortest path from
+        a vertex to the nearest kept one runs through vertices not kept until its last step.
+        """
+        out = np.where(kept, np.arange(self.n), -1)
+        free = ~kept
+        part = np.zeros(self.n, bool)
+        part[self.indices[free[self.rows]]] = True            # the free vertices and their neighbours
+        sub = np.flatnonzero(part)
+        loc = np.full(self.n, -1, np.int64)
+        loc[sub] = np.arange(len(sub))
+        e = part[self.rows] & part[self.indices] & ~self.diag
+        r, c = self.rows[e], self.indices[e]
+        w = np.maximum(np.sqrt(np.einsum("ij,ij->i", P[r] - P[c], P[r] - P[c])), 1e-12)
+        indptr = np.zeros(len(sub) + 1, np.int64)
+        np.cumsum(np.bincount(loc[r], minlength=len(sub)), out=indptr[1:])
+        G = sp.csr_matrix((w, loc[c], indptr), shape=(len(sub), len(sub)))
+        src = np.flatnonzero(kept[sub])
+        # the graph is symmetric: directed=True walks the same edges without a transposed copy
+        dist, _, sources = dijkstra(G, directed=True, indices=src, min_only=True,
+                                    return_predecessors=True)
+        ok = free[sub] & np.isfinite(dist) & (sources >= 0)
+        out[sub[ok]] = sub[sources[ok]]
+        return out
+
+    def averaging(self):
+        """S = D^-1 (A + I): each vertex's average over its closed 1-ring. Columns are stored in
+        decreasing order in each row, as scipy's product D^-1 @ (A + I) leaves them: the sums
+        of a step then add up in the same order (ties between bones break the same way)."""
+        data = np.repeat(1.0 / (self.deg + 1.0), self.deg + 1)
+        rev = self.indptr[self.rows] + self.indptr[self.rows + 1] - 1 - np.arange(len(self.rows))
+        idx = np.int32 if len(self.indices) < 2**31 - 1 else np.int64
+        return sp.csr_matrix((data, self.indices[rev].astype(idx), self.indptr.astype(idx)),
+                             shape=(self.n, self.n))
+
+    def components(self, keep):
+        """Connected components (labels) of the graph restricted to the stored pairs ``keep``."""
+        keep = keep | self.diag
+        indptr = np.zeros(self.n + 1, np.int64)
+        np.cumsum(np.bincount(self.rows[keep], minlength=self.n), out=indptr[1:])
+        G = sp.csr_matrix((np.ones(int(keep.sum())), self.indices[keep], indptr), shape=(self.n, self.n))
+        return connected_components(G, directed=True, connection="strong")[1]
+
+
+def _closest_bones(P, H, T, ids):
+    """Closest of the segments H[ids]-T[ids] for each point (a position in ``ids``); the same
+    choice as :func:`project_on_bones` (the first of equally close bones), without its KD-tree.
+
+    Every segment is scored with dot products in float32 (BLAS, coordinates relative to the
+    points' centre, the per-point constant |p|^2 left out); the segments within rounding of
+    the best (1e-5 of the squared extent: a few per cent of the points, mostly those behind a
+    shared joint) are compared exactly with :func:`mapping.closest_on_bones`.
+    """
+    n, B = len(P), len(ids)
+    bone = np.zeros(n, np.int64)
+    if n == 0 or B == 1:
+        return bone
+    X = np.concatenate([H[ids], T[ids]])
+    segs = np.stack([np.arange(B), B + np.arange(B)], 1)
+    o = 0.5 * (P.min(axis=0) + P.max(axis=0))
+    A = T[ids] - o                                   # sigma = t * head + (1 - t) * tail
+    D = H[ids] - T[ids]
+    DD = np.einsum("ij,ij->i", D, D)
+    AD = np.einsum("ij,ij->i", A, D)
+    AA = np.einsum("ij,ij->i", A, A)
+    inv = np.divide(1.0, DD, out=np.zeros_like(DD), where=DD > 0)
+    Pc = P - o
+    scale = max(float(np.einsum("ij,ij->i", Pc, Pc).max()), float(AA.max()), float(DD.max()), 1e-300)
+    tol = np.float32(1e-5 * scale)
+    f32 = np.float32
+    Pc, At, Dt = Pc.astype(f32), (-2.0 * A.T).astype(f32), D.T.astype(f32)
+    AD, AA, inv, DD = AD.astype(f32), AA.astype(f32), inv.astype(f32), DD.astype(f32)
+    rows, cands, counts = [], [], []
+    step = max(1, (1 << 18) // B)
+    for s in range(0, n, step):
+        p = Pc[s:s + step]
+        num = p @ Dt                                  # (p - a).d
+        num -= AD
+        t = num * inv
+        np.maximum(t, 0.0, out=t)
+        np.minimum(t, 1.0, out=t)
+        d2 = p @ At                                   # |p - a|^2 - |p|^2 - t (2 num - t d.d)
+        d2 += AA
+        num *= 2.0
+        num -= t * DD
+        num *= t
+        d2 -= num
+        best = np.argmin(d2, axis=1)
+        near = d2 <= (d2[np.arange(len(d2)), best] + tol)[:, None]
+        cnt = np.count_nonzero(near, axis=1)
+        bone[s:s + len(d2)] = best
+        many = np.flatnonzero(cnt > 1)
+        if len(many):
+            rows.append(s + many)
+            cands.append(np.nonzero(near[many])[1])
+            counts.append(cnt[many])
+    if rows:
+        rows = np.concatenate(rows)
+        indptr = np.r_[0, np.cumsum(np.concatenate(counts))]
+        bone[rows] = closest_on_bones(P[rows], X, segs, candidates=(indptr, np.concatenate(cands)))[0]
+    return bone
+
+
+def _labels(P, graph, H, T, deform):
+    """surface_labels on a built graph: (label, s, dist, closest)."""
     ids = np.flatnonzero(deform)
     if len(ids) == 0:
         raise CurveSkelError("the armature has no deforming bones")
-    X = np.concatenate([H[ids], T[ids]])
-    segs = np.stack([np.arange(len(ids)), len(ids) + np.arange(len(ids))], 1)
-    # project_on_bones: sigma = t * head + (1 - t) * tail
-    b, t, _ = project_on_bones(P, X, segs, k=k)
-    label = closest = ids[b]
-    E = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
-    if n and len(E):
-        G, E = _edge_graph(P, E, n)
-        same = label[E[:, 0]] == label[E[:, 1]]
-        Es = E[same]
-        Gs = sp.coo_matrix((np.ones(len(Es)), (Es[:, 0], Es[:, 1])), shape=(n, n))
-        _, comp = connected_components(Gs, directed=False)
+    n = len(P)
+    label = closest = ids[_closest_bones(P, H, T, ids)]
+    if n and len(graph.edges):
+        same = label[graph.rows] == label[graph.indices]
+        comp = graph.components(same)
         size = np.bincount(comp)
-        # largest patch of each label
         order = np.lexsort((-size[comp], label))
         first = np.r_[True, label[order][1:] != label[order][:-1]]
         keep_comp = np.zeros(len(size), bool)
         keep_comp[comp[order[first]]] = True
         kept = keep_comp[comp]
         if not kept.all():
-            src = np.flatnonzero(kept)
-            dist, _, sources = dijkstra(G, directed=False, indices=src, min_only=True,
-                                        return_predecessors=True)
-            move = (~kept) & np.isfinite(dist) & (sources >= 0)
+            near = graph.nearest(P, kept)
+            move = (~kept) & (near >= 0)
             label = label.copy()
-            label[move] = label[sources[move]]
+            label[move] = label[near[move]]
     s, d2 = _closest_on_segments(P, H[label], T[label])
     return label, s, np.sqrt(d2), closest
 
@@ -466,7 +593,8 @@ def bone_weights(V, F, heads, tails, parent, deform=None, *, blend: float = 0.25
         E = np.sort(E, axis=1)
         key = np.unique(E[:, 0] * max(n, 1) + E[:, 1])             # 1-D unique: 10x faster
         E = np.stack([key // max(n, 1), key % max(n, 1)], 1)
-    label, s, dist, closest = surface_labels(P, E, H, T, deform)
+    graph = _Graph(E, n)
+    label, s, dist, closest = _labels(P, graph, H, T, deform)
     hm, tm, hp, tp, attached = bone_partners(H, T, par, deform)
     near_head = s < 0.5
     u = np.where(near_head, s, 1.0 - s)
@@ -485,7 +613,7 @@ def bone_weights(V, F, heads, tails, parent, deform=None, *, blend: float = 0.25
     if smooth > 0 and len(E) and n:
         h = float(np.mean(np.linalg.norm(P[E[:, 0]] - P[E[:, 1]], axis=1)))
         k = smoothing_iterations(smooth * float(np.median(dist)), h, cap=SMOOTH_CAP)
-    index, weight = smooth_weights(index, weight, E, iterations=k, max_influences=max_influences)
+    index, weight = _smooth(index, weight, graph, k, max_influences, 1e-4)
     # keep the main bone's family only (itself, its parent, its children)
     main = index[:, :1]
     ok = index >= 0
