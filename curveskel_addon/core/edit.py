@@ -38,7 +38,7 @@ EDIT_CONSTANTS = {
     # own radii is a bump of the junction, not a part
     "prune_radius_factor": 1.0,
     # merge: no merged bone longer than this fraction of the size (a loop keeps its shape)
-    "merge_max_length": 0.05,
+    "merge_max_length": 0.2,
     # merge: a chain joint turning by more than this (degrees) is a zig-zag when one of its
     # bones is shorter than its radius and the bone replacing it passes within
     # ``sharp_radius_fraction`` of its radius
