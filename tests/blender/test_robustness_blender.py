@@ -15,6 +15,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 import pytest
+from cli_support import run_cli, write_capsule_obj
 from meshes import capsule
 
 from curveskel_addon import results
@@ -183,26 +184,9 @@ def test_modal_operator_on_inverted_normals_matches_the_clean_mesh(make_mesh):
 
 
 # -- the command line's Blender outputs -----------------------------------------------------------
-def run_cli(*args, limit=None):
-    pre = None
-    if limit is not None:
-        import resource
-
-        def pre():                     # a file-size limit: a disk that fills up at `limit` bytes
-            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-            resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-    return subprocess.run([sys.executable, str(CLI), *map(str, args)], capture_output=True,
-                          text=True, timeout=600, preexec_fn=pre)
-
-
 @pytest.fixture(scope="module")
 def mesh_file(tmp_path_factory):
-    path = tmp_path_factory.mktemp("cli") / "capsule.obj"
-    V, F = capsule(n_around=12, n_body=12)
-    with open(path, "w") as fh:
-        fh.writelines(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in V)
-        fh.writelines(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in F)
-    return path
+    return write_capsule_obj(tmp_path_factory.mktemp("cli") / "capsule.obj")
 
 
 def test_blend_over_an_existing_file_leaves_no_backup_unless_asked(mesh_file, tmp_path):

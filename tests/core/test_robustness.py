@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cli_support import run_cli as _run_cli, write_capsule_obj
 from meshes import capsule
 
 from curveskel_addon.core import CurveSkelError, SkeletonParams, skeletonize
@@ -383,26 +384,12 @@ def test_a_one_based_obj_is_read_as_before(tmp_path):
 
 # -- the command line: outputs checked first, written whole, never over the input -------------------
 def run_cli(*args, limit=None):
-    pre = None
-    if limit is not None:
-        import resource
-        import signal
-
-        def pre():                     # a file-size limit: a disk that fills up at `limit` bytes
-            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-            resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-    return subprocess.run([sys.executable, str(CLI), *map(str, args)], capture_output=True,
-                          text=True, timeout=300, preexec_fn=pre)
+    return _run_cli(*args, limit=limit, timeout=300)
 
 
 @pytest.fixture(scope="module")
 def mesh_file(tmp_path_factory):
-    path = tmp_path_factory.mktemp("cli") / "capsule.obj"
-    V, F = capsule(n_around=12, n_body=12)
-    with open(path, "w") as fh:
-        fh.writelines(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in V)
-        fh.writelines(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in F)
-    return path
+    return write_capsule_obj(tmp_path_factory.mktemp("cli") / "capsule.obj")
 
 
 def _refused_before_running(r, message):
