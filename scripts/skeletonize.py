@@ -379,9 +379,18 @@ def _import_bpy() -> None:
     import signal
 
     signal.signal(signal.SIGINT, _exit_on_sigint)
-    import bpy  # noqa: F401
-
-    signal.signal(signal.SIGINT, _exit_on_sigint)
+    # Blender's start-up installs signal handlers of its own (bpy 5.2 puts SIGINT back to the
+    # default action, which kills the process with no clean-up): hold Ctrl-C back while bpy
+    # loads, then deliver a pending one to our handler.
+    blocked = hasattr(signal, "pthread_sigmask")
+    if blocked:
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        import bpy  # noqa: F401
+    finally:
+        signal.signal(signal.SIGINT, _exit_on_sigint)
+        if blocked:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def _exit_on_sigint(signum, frame) -> None:
