@@ -7,14 +7,17 @@
       -> edit        bumps removed, straight chain joints and zig-zags merged, joint budget (:mod:`.edit`)
       -> fit         E minimised (LM or the paper's gradient descent) with every joint held to its
                      centred place and kept inside; sigma stays on the bones of its Reeb region
+      -> radii       chains smoothed, radii fitted to the surface with the curve fixed
+                     (:func:`.centreline.fit_radii_surface`)
+      -> contain     tips trimmed, bones that leave the mesh split at medial points (:mod:`.edit`)
       -> Skeleton    every input vertex mapped; the reported E is that of the returned skeleton
 
 Why this order (issue 10): the *shape* of the curve comes from the mesh's structure (Reeb
 graph: one branch per part, the genus, no fold) and its medial axis; E decides the radii and
 the fine placement within that shape. Letting E also choose sigma freely and split bones where
 it is worst (the earlier default) made bones zig-zag through the volume: E is low for any curve
-whose balls fill the shape. ``SkeletonParams.paper()`` skips centre and edit: the method as
-published.
+whose balls fill the shape. ``SkeletonParams.paper()`` skips centre, edit, radii and contain:
+the method as published.
 """
 
 from __future__ import annotations
