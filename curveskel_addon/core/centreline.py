@@ -103,15 +103,12 @@ def region_candidates(region, bone_region):
     -------
     (indptr (n + 1,), ids (p,)) for :func:`.mapping.closest_on_bones`.
     """
+    from .state import candidates_from_pairs
     region = np.asarray(region, np.int64)
     bone_region = np.asarray(bone_region, np.int64)
     R = int(max(region.max(initial=-1), bone_region.max(initial=-1))) + 1
-    border = np.argsort(bone_region, kind="stable")
-    bstarts = np.concatenate([[0], np.cumsum(np.bincount(bone_region, minlength=R))])
-    cnt = np.diff(bstarts)[region]
-    indptr = np.concatenate([[0], np.cumsum(cnt)])
-    local = np.arange(indptr[-1]) - np.repeat(indptr[:-1], cnt)
-    return indptr, border[np.repeat(bstarts[region], cnt) + local]
+    pairs = np.stack([bone_region, np.arange(len(bone_region))], axis=1)
+    return candidates_from_pairs(pairs, region, R)
 
 
 def _hat_matrix(bones, bone, t, J, sw):
@@ -280,31 +277,34 @@ def _radii_for_distances(d, w, J, bones, bone, t, smooth):
     return np.maximum(r, 0.0)
 
 
-def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0, key=None):
+def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0, key=None, weights=None):
     """Medial points of (at most) k area-weighted vertex samples.
+
+    ``weights`` (n,): the vertices' areas if already known (any scale).
 
     Returns
     -------
     idx : (k,) int   the sampled vertices
     M : (k, 3) float their medial points
     rho : (k,) float their medial radii
+    balls : MedialBalls, with its KD-tree of the surface vertices (reusable)
     """
     from .medial import MedialBalls
+    from .state import canonical_sample
     from .vertex_area import vertex_areas
     n = len(V)
     if n <= k:
         idx = np.arange(n)
     else:
-        a = vertex_areas(V, F)
-        from .state import canonical_sample
+        a = vertex_areas(V, F) if weights is None else weights
         idx = canonical_sample(np.arange(n) if key is None else key, k, seed, p=a)
     X = np.asarray(fa_joints)[:, :3]
     i, j = fa_bones[bone[idx], 0], fa_bones[bone[idx], 1]
     sig = t[idx, None] * X[i] + (1.0 - t[idx, None]) * X[j]
     d = np.linalg.norm(V[idx] - sig, axis=1)
-    mb = MedialBalls(V, F)
-    M, rho = mb.at(idx, rho0=2.0 * d + 1e-9)
-    return idx, M, rho
+    balls = MedialBalls(V, F)
+    M, rho = balls.at(idx, rho0=2.0 * d + 1e-9)
+    return idx, M, rho, balls
 
 
 #: Move a joint to the medial centroid only where that is deeper inside (see fit_centreline).
@@ -337,8 +337,8 @@ def centre_stage(state, spacing_abs, *, smooth, seed=0):
     """
     from .edit import collapse_short_bones
     V, F = state.V, state.F
-    idx, M, rho = medial_samples(V, F, state.joints, state.bones, state.bone, state.t,
-                                 MEDIAL_SAMPLES, seed=seed, key=state.key)
+    idx, M, rho, balls = medial_samples(V, F, state.joints, state.bones, state.bone, state.t,
+                                        MEDIAL_SAMPLES, seed=seed, key=state.key)
     state.medial = (M, rho)
     # contract the tiny bones (direction noise), then split the bones of branching regions
     joints, bones, bmap = collapse_short_bones(state.joints, state.bones,
@@ -363,15 +363,13 @@ def centre_stage(state, spacing_abs, *, smooth, seed=0):
     state.pairs = np.unique(np.stack([reg, o[np.repeat(st[state.pairs[:, 1]], cnt) + local]], 1), axis=0)
     depth = None
     if DEPTH_SELECT:
-        from scipy.spatial import cKDTree
-
-        tree = cKDTree(V)
         inside = state.inside
 
         def depth(P):
-            # distance to the surface, negative outside: the centroid of a curved medial set
-            # (a ring's arc) can fall in the hole, far from the surface but not in the shape
-            d = tree.query(P)[0]
+            # distance to the surface (the medial balls' tree of its vertices), negative
+            # outside: the centroid of a curved medial set (a ring's arc) can fall in the hole,
+            # far from the surface but not in the shape
+            d = balls.tree.query(P)[0]
             return np.where(inside(P), d, -d)
     X, _, _ = fit_centreline(M, rho, joints, bones, state.candidates(idx), smooth=smooth,
                              rounds=CENTRE_ROUNDS, map_points=V[idx] if MAP_VERTICES else None,

@@ -33,7 +33,6 @@ from .centreline import centre_stage, fit_radii_surface, smooth_chains
 from .edit import contain_stage, edit_stage
 from .errors import CurveSkelError
 from .mapping import closest_on_bones
-from .meb import size_of
 from .mesh_graph import components
 from .mesh_input import clean_mesh
 from .params import SkeletonParams, check_params
@@ -132,9 +131,8 @@ class SkeletonRun:
             region[vids] = reg_c + nr
             key[vids] = fa.f if fa.f is not None else 0.0
             pairs.append(np.stack([breg_c + nr, np.arange(len(fa.bones)) + nb], axis=1))
-            Vc = V[vids]
-            diag = size_of(Vc)
-            spacing.append(np.full(len(fa.bones), fa.meta.get("spacing_used", p.spacing) * diag))
+            spacing.append(np.full(len(fa.bones), fa.meta.get("spacing_used", p.spacing)
+                                   * fa.meta["size"]))
             nj += len(fa.joints)
             nb += len(fa.bones)
             nr += int(max(reg_c.max(initial=-1), breg_c.max(initial=-1))) + 1
@@ -159,7 +157,6 @@ class SkeletonRun:
 
     def _centre_and_edit(self) -> None:
         p, st = self.params, self.state
-        diag = size_of(self.mesh.V) if len(self.mesh.V) else 1.0
         t0 = time.perf_counter()
         with self._timed("centre"):
             centre_stage(st, self._bone_spacing, smooth=p.smoothness, seed=p.seed)
@@ -168,7 +165,7 @@ class SkeletonRun:
         t0 = time.perf_counter()
         with self._timed("edit"):
             self.edit_log = edit_stage(st, prune=p.prune, simplify=p.simplify,
-                                       max_joints=p.max_joints, diag=diag)
+                                       max_joints=p.max_joints, diag=st.size)
         st.record("edit", time.perf_counter() - t0)
         self.progress("edit", 1.0)
 
@@ -241,8 +238,7 @@ class SkeletonRun:
             st.record("radii", time.perf_counter() - t0)
             t0 = time.perf_counter()
             with self._timed("contain"):
-                diag = size_of(st.V)
-                self.contain_log = contain_stage(st, st.inside, st.medial, diag=diag,
+                self.contain_log = contain_stage(st, st.inside, st.medial, diag=st.size,
                                                  max_joints=self.params.max_joints)
             st.record("contain", time.perf_counter() - t0)
         # E after every stage (all vertices, each stage's own mapping); the last is the E of

@@ -102,7 +102,8 @@ class FirstApproximation:
         In [0, 1]: sigma = t * x_i + (1 - t) * x_j for bone (i, j) (paper eq. 19).
     meta : dict
         ``"timings"`` {stage: seconds} for "pole", "contours", "reeb", "meb", "mapping"; and
-        "pole", "spacing_used", "levels", "cycles", "expected_cycles", "noise_caps_removed",
+        "pole", "size" (the component's diameter, :func:`.meb.size_of`: the unit of the
+        spacing), "spacing_used", "levels", "cycles", "expected_cycles", "noise_caps_removed",
         "refinements", "regions", "loops".
     region : (n,) int or None
         Reeb region of each vertex (None for the single-bone fallback).
@@ -460,8 +461,8 @@ def first_approximation(V, F, *, spacing: float, seed: int) -> FirstApproximatio
     diag = size_of(V)      # rotation-free size (the spacing's unit)
     f = np.where(np.isfinite(f), f, 0.0)
     maxf = float(f.max())
-    meta = {"pole": int(pole), "timings": timings, "expected_cycles": None, "cycles": 0,
-            "noise_caps_removed": 0, "refinements": 0}
+    meta = {"pole": int(pole), "size": diag, "timings": timings, "expected_cycles": None,
+            "cycles": 0, "noise_caps_removed": 0, "refinements": 0}
     if n < 3 or diag <= 0 or maxf <= 0:
         joints, bones = _single_bone(V, diag)
         return _finish(V, joints, bones, None, meta | {"spacing_used": 1.0, "levels": 0,

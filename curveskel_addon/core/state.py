@@ -97,6 +97,15 @@ class PipelineState:
     medial: tuple | None = None     # (M (k, 3), rho (k,)): medial points of surface samples
     key: np.ndarray | None = None   # (n,) numbering-free order of the vertices (geodesic f)
     _inside: object = None
+    _size: float | None = None
+
+    @property
+    def size(self) -> float:
+        """Diameter of the working mesh's minimum enclosing ball (:func:`.meb.size_of`), once."""
+        if self._size is None:
+            from .meb import size_of
+            self._size = size_of(self.V) if len(self.V) else 1.0
+        return self._size
 
     @property
     def inside(self):
