@@ -46,26 +46,28 @@ def _attribute(me, name, domain, data_type):
     return a if a is not None and a.domain == domain and a.data_type == data_type else None
 
 
-def _vertices(me) -> np.ndarray:
-    co = np.empty(len(me.vertices) * 3, dtype=np.float32)
-    # the "position" attribute is a plain copy; vertices.co goes through RNA item by item
-    a = _attribute(me, "position", 'POINT', 'FLOAT_VECTOR')
+def _read(me, attribute, domain, data_type, prop, collection, fallback, width, dtype):
+    """(n, width) array of a mesh attribute: the plain attribute copy where the mesh has it
+    ("position", ".edge_verts"), else ``collection.foreach_get(fallback)`` (RNA, item by item:
+    ``edges.foreach_get("vertices")`` is ~300x slower)."""
+    out = np.empty(len(collection) * width, dtype=dtype)
+    a = _attribute(me, attribute, domain, data_type)
     if a is not None:
-        a.data.foreach_get("vector", co)
+        a.data.foreach_get(prop, out)
     else:
-        me.vertices.foreach_get("co", co)
-    return co.reshape(-1, 3).astype(np.float64)
+        collection.foreach_get(fallback, out)
+    return out.reshape(-1, width)
+
+
+def _vertices(me) -> np.ndarray:
+    return _read(me, "position", 'POINT', 'FLOAT_VECTOR', "vector", me.vertices, "co", 3,
+                 np.float32).astype(np.float64)
 
 
 def _edges(me) -> np.ndarray:
-    e = np.empty(len(me.edges) * 2, dtype=np.int32)
-    # ".edge_verts" (Blender 4.0+): a plain copy, ~300x faster than edges.foreach_get("vertices")
-    a = _attribute(me, ".edge_verts", 'EDGE', 'INT32_2D')
-    if a is not None:
-        a.data.foreach_get("value", e)
-    else:
-        me.edges.foreach_get("vertices", e)
-    return e.reshape(-1, 2).astype(np.int64)
+    # ".edge_verts": Blender 4.0+
+    return _read(me, ".edge_verts", 'EDGE', 'INT32_2D', "value", me.edges, "vertices", 2,
+                 np.int32).astype(np.int64)
 
 
 def armature_bones(arm_obj) -> dict:

@@ -92,10 +92,19 @@ class CURVESKEL_OT_reset_settings(bpy.types.Operator):
         return {'FINISHED'}
 
 
-class CURVESKEL_PT_main(bpy.types.Panel):
+class _SidebarPanel:
+    """Where every CurveSkel panel lives: the 3D View's sidebar, its CurveSkel tab."""
+
     bl_space_type = 'VIEW_3D'
     bl_region_type = 'UI'
     bl_category = "CurveSkel"
+
+
+class _SubPanel(_SidebarPanel):
+    bl_parent_id = "CURVESKEL_PT_main"
+
+
+class CURVESKEL_PT_main(_SidebarPanel, bpy.types.Panel):
     bl_label = "Curve-Skeleton"
 
     def draw(self, context):
@@ -112,12 +121,8 @@ class CURVESKEL_PT_main(bpy.types.Panel):
         layout.operator("curveskel.reset_settings", icon='LOOP_BACK')
 
 
-class CURVESKEL_PT_advanced(bpy.types.Panel):
-    bl_space_type = 'VIEW_3D'
-    bl_region_type = 'UI'
-    bl_category = "CurveSkel"
+class CURVESKEL_PT_advanced(_SubPanel, bpy.types.Panel):
     bl_label = "Advanced"
-    bl_parent_id = "CURVESKEL_PT_main"
     bl_options = {'DEFAULT_CLOSED'}
 
     def draw(self, context):
@@ -129,12 +134,8 @@ class CURVESKEL_PT_advanced(bpy.types.Panel):
             col.prop(context.scene.curveskel, name)
 
 
-class CURVESKEL_PT_result(bpy.types.Panel):
-    bl_space_type = 'VIEW_3D'
-    bl_region_type = 'UI'
-    bl_category = "CurveSkel"
+class CURVESKEL_PT_result(_SubPanel, bpy.types.Panel):
     bl_label = "Last Result"
-    bl_parent_id = "CURVESKEL_PT_main"
 
     def draw(self, context):
         layout = self.layout
@@ -163,14 +164,10 @@ class CURVESKEL_PT_result(bpy.types.Panel):
             layout.prop(sil, "display_type", text="Silhouette Display")
 
 
-class CURVESKEL_PT_bind(bpy.types.Panel):
+class CURVESKEL_PT_bind(_SubPanel, bpy.types.Panel):
     """Bind the active mesh to its armature as it is now, with a choice of weights."""
 
-    bl_space_type = 'VIEW_3D'
-    bl_region_type = 'UI'
-    bl_category = "CurveSkel"
     bl_label = "Bind Mesh"
-    bl_parent_id = "CURVESKEL_PT_main"
 
     def draw(self, context):
         from .ops_bind import METHOD_ITEMS, bind_targets

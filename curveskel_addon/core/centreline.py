@@ -277,6 +277,16 @@ def _radii_for_distances(d, w, J, bones, bone, t, smooth):
     return np.maximum(r, 0.0)
 
 
+def _signed_depth(tree, inside):
+    """Distance to the surface (``tree``: a KD-tree of its vertices), negative outside the mesh:
+    the centroid of a curved medial set (a ring's arc) can fall in the hole, far from the
+    surface but not in the shape."""
+    def depth(P):
+        d = tree.query(P)[0]
+        return np.where(inside(P), d, -d)
+    return depth
+
+
 def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0, key=None, weights=None):
     """Medial points of (at most) k area-weighted vertex samples.
 
@@ -361,16 +371,7 @@ def centre_stage(state, spacing_abs, *, smooth, seed=0):
     reg = np.repeat(state.pairs[:, 0], cnt)
     local = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
     state.pairs = np.unique(np.stack([reg, o[np.repeat(st[state.pairs[:, 1]], cnt) + local]], 1), axis=0)
-    depth = None
-    if DEPTH_SELECT:
-        inside = state.inside
-
-        def depth(P):
-            # distance to the surface (the medial balls' tree of its vertices), negative
-            # outside: the centroid of a curved medial set (a ring's arc) can fall in the hole,
-            # far from the surface but not in the shape
-            d = balls.tree.query(P)[0]
-            return np.where(inside(P), d, -d)
+    depth = _signed_depth(balls.tree, state.inside) if DEPTH_SELECT else None
     X, _, _ = fit_centreline(M, rho, joints, bones, state.candidates(idx), smooth=smooth,
                              rounds=CENTRE_ROUNDS, map_points=V[idx] if MAP_VERTICES else None,
                              depth=depth)

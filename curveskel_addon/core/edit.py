@@ -81,7 +81,7 @@ def chains(n_joints, bones):
 
     def walk(start, k):
         js, bs = [start], []
-        prev, cur, b = start, nbr[k], bid[k]
+        cur, b = nbr[k], bid[k]
         used[b] = True
         bs.append(int(b))
         js.append(int(cur))
@@ -92,7 +92,7 @@ def chains(n_joints, bones):
             if used[b]:
                 break
             used[b] = True
-            prev, cur = cur, nbr[k2]
+            cur = nbr[k2]
             bs.append(int(b))
             js.append(int(cur))
         return js, bs

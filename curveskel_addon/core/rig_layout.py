@@ -157,6 +157,29 @@ def _perpendicular(d, ref):
     raise AssertionError("unreachable: three axes cannot all be parallel to d")
 
 
+def _roll_axes(d, parent, up, from_root):
+    """Each bone's z (roll) axis, parents first: a root bone's is perpendicular to it and to a
+    fixed reference, a bone hanging from a root's is perpendicular to ``up``, any other the
+    parent's transported along the bend (:func:`_transport`).
+
+    Parameters
+    ----------
+    d : (R, 3) unit bone directions; parent : (R,) int, -1 for roots, parents before children
+    up : (3,) float; from_root : (R,) bool, the bones whose parent is a root bone
+    """
+    R = len(d)
+    z = np.zeros((R, 3))
+    ref = np.array([0.0, -1.0, 0.0]) if abs(up[2]) > 0.5 else np.array([0.0, 0.0, 1.0])
+    for r in range(R):
+        if parent[r] < 0:
+            z[r] = _perpendicular(d[r], ref)
+        elif from_root[r]:
+            z[r] = _perpendicular(d[r], up)
+        else:
+            z[r] = _transport(z[parent[r]], d[parent[r]], d[r])
+    return z
+
+
 def _transport(z_prev, d_prev, d):
     """Carry the roll axis ``z_prev`` of a bone along ``d_prev`` onto a bone along ``d``.
 
@@ -405,16 +428,7 @@ def rig_layout(joints, bones, *, root=None, up=(0.0, 0.0, 1.0), merge_tol=None) 
             bone_rig[b], bone_s[b] = rig_of_bone[in_tree[j]], 1.0
 
     # -- roll axes, parents first ------------------------------------------------------------------------
-    d = _unit(tails - heads)
-    z = np.zeros((R, 3))
-    for r in range(R):
-        if parent[r] < 0:
-            ref = np.array([0.0, -1.0, 0.0]) if abs(up[2]) > 0.5 else np.array([0.0, 0.0, 1.0])
-            z[r] = _perpendicular(d[r], ref)
-        elif parent[r] in root_rig:
-            z[r] = _perpendicular(d[r], up)
-        else:
-            z[r] = _transport(z[parent[r]], d[parent[r]], d[r])
+    z = _roll_axes(_unit(tails - heads), parent, up, np.isin(parent, root_rig))
 
     # -- names ---------------------------------------------------------------------------------------
     nb = max(len(starts), 1)
@@ -819,15 +833,7 @@ def named_rig(lay: RigLayout, plane: MirrorPlane | None = None, *, pair_tol: flo
 
     # -- rolls: transported from the parent; the right side mirrors the left --------------------------
     dd = _unit(tails - heads)
-    z = np.zeros((R, 3))
-    for r in range(R):
-        if parent[r] < 0:
-            ref = np.array([0.0, -1.0, 0.0]) if abs(up[2]) > 0.5 else np.array([0.0, 0.0, 1.0])
-            z[r] = _perpendicular(dd[r], ref)
-        elif parent[r] < C:
-            z[r] = _perpendicular(dd[r], up)
-        else:
-            z[r] = _transport(z[parent[r]], dd[parent[r]], dd[r])
+    z = _roll_axes(dd, parent, up, (parent >= 0) & (parent < C))
     mirror = np.full(R, -1, np.int64)
     if plane is not None:
         for r in range(C):

@@ -7,6 +7,7 @@ import bpy
 import numpy as np
 import pytest
 from meshes import capsule, torus, two_capsules
+from modal_support import FakeContext, fake_event, modal_operator
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
@@ -368,72 +369,18 @@ def test_live_run_to_the_end_equals_execute(make_mesh, mesh_arrays):
     assert "Cylinder.silhouette" not in bpy.data.objects
 
 
-class _WindowManager:
-    """The window manager as the modal mode sees it. Timers never fire in background mode, so
-    the test delivers the TIMER events itself; everything else is the real Blender."""
-
-    def __init__(self, real):
-        self.real, self.timers, self.handlers = real, [], []
-
-    def event_timer_add(self, step, window=None):
-        self.timers.append(object())
-        return self.timers[-1]
-
-    def event_timer_remove(self, timer):
-        self.timers.remove(timer)
-
-    def modal_handler_add(self, op):
-        self.handlers.append(op)
-        return True
-
-    def __getattr__(self, name):          # progress_begin/update/end: the real ones
-        return getattr(self.real, name)
-
-
-class _Context:
-    def __init__(self):
-        self.window_manager = _WindowManager(bpy.context.window_manager)
-        self.window = bpy.context.window
-        self.area = None
-
-    def __getattr__(self, name):
-        return getattr(bpy.context, name)
-
-
-def _modal_operator(**props):
-    """The operator's own methods on a plain object holding its properties (Blender cannot
-    create an operator instance outside bpy.ops)."""
-    import types
-
-    from curveskel_addon.ops_generate import CURVESKEL_OT_generate
-    from curveskel_addon.properties import settings_dict
-
-    op = types.SimpleNamespace(**{**settings_dict(bpy.context.scene.curveskel), **props}, reports=[])
-    op.report = lambda kind, msg: op.reports.append((set(kind), msg))
-    for name in ("_modal_start", "modal", "_modal_end", "_modal_cleanup", "_status", "_checked_source",
-                 "_finish"):
-        setattr(op, name, types.MethodType(getattr(CURVESKEL_OT_generate, name), op))
-    return op
-
-
-def _event(kind, value='NOTHING'):
-    import types
-
-    return types.SimpleNamespace(type=kind, value=value)
-
-
 def test_modal_mode_watch_then_escape(make_mesh):
     ob = make_mesh("Cylinder", *capsule())
-    ctx, op = _Context(), _modal_operator(interactive=True, update_every=1)
+    ctx, op = FakeContext(), modal_operator(interactive=True, update_every=1)
     assert op._modal_start(ctx) == {'RUNNING_MODAL'}
     assert ctx.window_manager.handlers == [op] and len(ctx.window_manager.timers) == 1
     sil = results.find_result("Cylinder")["silhouette"]
     first = _silhouette_arrays(sil)[0].copy()
-    assert op.modal(ctx, _event('MOUSEMOVE')) == {'PASS_THROUGH'}      # the view stays usable
+    assert op.modal(ctx, fake_event('MOUSEMOVE')) == {'PASS_THROUGH'}      # the view stays usable
     for _ in range(3):
-        assert op.modal(ctx, _event('TIMER')) == {'RUNNING_MODAL'}
+        assert op.modal(ctx, fake_event('TIMER')) == {'RUNNING_MODAL'}
     assert not np.allclose(_silhouette_arrays(sil)[0], first)        # the silhouette moved
-    assert op.modal(ctx, _event('ESC', 'PRESS')) == {'FINISHED'}
+    assert op.modal(ctx, fake_event('ESC', 'PRESS')) == {'FINISHED'}
     assert ctx.window_manager.timers == []
     found = results.find_result("Cylinder")
     assert found["silhouette"] == sil and found["armature"] is not None
@@ -446,10 +393,10 @@ def test_modal_mode_runs_to_the_end_like_execute(make_mesh):
     ob = make_mesh("Cylinder", *capsule())
     bpy.ops.curveskel.generate()
     expected = results.figures(results.find_result("Cylinder")["armature"])
-    ctx, op = _Context(), _modal_operator(interactive=True, update_every=4)
+    ctx, op = FakeContext(), modal_operator(interactive=True, update_every=4)
     assert op._modal_start(ctx) == {'RUNNING_MODAL'}
     for _ in range(1000):
-        if op.modal(ctx, _event('TIMER')) == {'FINISHED'}:
+        if op.modal(ctx, fake_event('TIMER')) == {'FINISHED'}:
             break
     found = results.find_result(ob.name)
     figs = results.figures(found["armature"])

@@ -9,7 +9,6 @@ import signal
 import subprocess
 import sys
 import time
-import types
 from pathlib import Path
 
 import bpy
@@ -17,6 +16,7 @@ import numpy as np
 import pytest
 from cli_support import run_cli, write_capsule_obj
 from meshes import capsule
+from modal_support import FakeContext, fake_event, modal_operator
 
 from curveskel_addon import results
 
@@ -60,70 +60,8 @@ def test_operator_gives_the_clean_meshes_skeleton(make_mesh, make):
 
 
 # -- the interactive operator: whatever fails, nothing is left behind -----------------------------
-class _WindowManager:
-    """Timers never fire in background mode: the test delivers TIMER events itself."""
-
-    def __init__(self, real):
-        self.real, self.timers, self.handlers, self.progress = real, [], [], []
-
-    def event_timer_add(self, step, window=None):
-        self.timers.append(object())
-        return self.timers[-1]
-
-    def event_timer_remove(self, timer):
-        self.timers.remove(timer)
-
-    def modal_handler_add(self, op):
-        self.handlers.append(op)
-        return True
-
-    def progress_begin(self, lo, hi):
-        self.progress.append("begin")
-
-    def progress_update(self, value):
-        pass
-
-    def progress_end(self):
-        self.progress.append("end")
-
-
-class _Area:
-    def __init__(self):
-        self.header = None
-
-    def header_text_set(self, text):
-        self.header = text
-
-
-class _Context:
-    def __init__(self):
-        self.window_manager = _WindowManager(bpy.context.window_manager)
-        self.window = bpy.context.window
-        self.area = _Area()
-
-    def __getattr__(self, name):
-        return getattr(bpy.context, name)
-
-
-def _modal_operator(**props):
-    """The operator's own methods on a plain object holding its properties."""
-    from curveskel_addon.ops_generate import CURVESKEL_OT_generate
-    from curveskel_addon.properties import settings_dict
-
-    op = types.SimpleNamespace(**{**settings_dict(bpy.context.scene.curveskel), **props}, reports=[])
-    op.report = lambda kind, msg: op.reports.append((set(kind), msg))
-    for name in ("_modal_start", "modal", "_modal_end", "_modal_cleanup", "_status", "_checked_source",
-                 "_finish"):
-        setattr(op, name, types.MethodType(getattr(CURVESKEL_OT_generate, name), op))
-    return op
-
-
 def _boom(*args, **kwargs):
     raise ZeroDivisionError("a bug")
-
-
-def _event(kind, value='NOTHING'):
-    return types.SimpleNamespace(type=kind, value=value)
 
 
 MODAL_FAILURES = {
@@ -139,18 +77,18 @@ def test_modal_operator_cleans_up_on_any_exception(make_mesh, monkeypatch, name)
 
     what, event = MODAL_FAILURES[name]
     make_mesh("Cylinder", *CAPSULE)
-    ctx, op = _Context(), _modal_operator(interactive=True, update_every=1)
+    ctx, op = FakeContext(), modal_operator(interactive=True, update_every=1)
     assert op._modal_start(ctx) == {'RUNNING_MODAL'}
     assert len(ctx.window_manager.timers) == 1 and ctx.area.header is not None
     assert results.find_result("Cylinder")["silhouette"] is not None        # the live preview
-    assert op.modal(ctx, _event('TIMER')) == {'RUNNING_MODAL'}
+    assert op.modal(ctx, fake_event('TIMER')) == {'RUNNING_MODAL'}
     if what == "advance-interrupt":
         def interrupt(*a, **k):
             raise KeyboardInterrupt
         monkeypatch.setattr(ops_generate.LiveRun, "advance", interrupt)
     else:
         monkeypatch.setattr(ops_generate.LiveRun, what, _boom)
-    assert op.modal(ctx, _event(event, 'PRESS')) == {'CANCELLED'}
+    assert op.modal(ctx, fake_event(event, 'PRESS')) == {'CANCELLED'}
     assert ctx.window_manager.timers == []                                  # timer removed
     assert ctx.window_manager.progress[-1] == "end"                         # progress ended
     assert ctx.area.header is None                                          # header text cleared
@@ -164,7 +102,7 @@ def test_modal_operator_cleans_up_on_any_exception(make_mesh, monkeypatch, name)
 
 def test_modal_start_failing_after_the_preview_leaves_nothing(make_mesh, monkeypatch):
     make_mesh("Cylinder", *CAPSULE)
-    ctx, op = _Context(), _modal_operator(interactive=True, update_every=1)
+    ctx, op = FakeContext(), modal_operator(interactive=True, update_every=1)
     monkeypatch.setattr(ctx.window_manager, "modal_handler_add", _boom)
     assert op._modal_start(ctx) == {'CANCELLED'}
     assert ctx.window_manager.timers == [] and ctx.area.header is None
@@ -175,10 +113,10 @@ def test_modal_start_failing_after_the_preview_leaves_nothing(make_mesh, monkeyp
 def test_modal_operator_on_inverted_normals_matches_the_clean_mesh(make_mesh):
     ref = _generate(make_mesh, "Clean", *CAPSULE)
     make_mesh("Inverted", *_inverted())
-    ctx, op = _Context(), _modal_operator(interactive=True, update_every=50)
+    ctx, op = FakeContext(), modal_operator(interactive=True, update_every=50)
     assert op._modal_start(ctx) == {'RUNNING_MODAL'}
     for _ in range(1000):
-        if op.modal(ctx, _event('TIMER')) == {'FINISHED'}:
+        if op.modal(ctx, fake_event('TIMER')) == {'FINISHED'}:
             break
     np.testing.assert_allclose(_joints("Inverted"), ref, atol=1e-6)
 
