@@ -456,7 +456,7 @@ def main(argv=None) -> int:
     ap = build_parser()
     args = ap.parse_args(argv)
     try:
-        return run(args)
+        return _finish(run(args))
     except CurveSkelError as exc:
         remove_temps()
         print(f"error: {exc}", file=sys.stderr)
@@ -469,6 +469,27 @@ def main(argv=None) -> int:
             raise
         print(f"error: unexpected {type(exc).__name__}: {exc} (run with --debug for details)", file=sys.stderr)
         return 1
+
+
+def _finish(rc: int) -> int:
+    """Every output is written: a Ctrl-C from here on has nothing left to stop and is ignored.
+    (The interpreter's shutdown puts a handled SIGINT back to the default action, so a late
+    Ctrl-C would otherwise kill the process by signal after a complete run.)"""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return rc
+
+
+def _exit(rc: int) -> None:
+    """Leave with ``rc``; with bpy loaded at once, as the normal shutdown can crash inside Blender."""
+    if "bpy" in sys.modules or "_bpy" in sys.modules:
+        try:
+            sys.stdout.flush()
+            sys.stderr.flush()
+        finally:
+            os._exit(rc)
+    sys.exit(rc)
 
 
 def _interrupted() -> int:
@@ -489,4 +510,4 @@ def _interrupted() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    _exit(main())
