@@ -313,7 +313,7 @@ def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0, key=None, weig
     sig = t[idx, None] * X[i] + (1.0 - t[idx, None]) * X[j]
     d = np.linalg.norm(V[idx] - sig, axis=1)
     balls = MedialBalls(V, F)
-    M, rho = balls.at(idx, rho0=2.0 * d + 1e-9)
+    M, rho = balls.at(idx, rho0=2.0 * d)        # (floored at 1e-12 of the size inside: no unit)
     return idx, M, rho, balls
 
 

@@ -74,7 +74,12 @@ class SkeletonRun:
         self.timings: dict[str, float] = {}
         with self._timed("clean"):
             self.mesh = clean_mesh(V, F, min_component_area=self.params.min_component_area)
-            self._input_V = np.asarray(V, dtype=np.float64)
+            # Work about the centre of the bounding box, joints moved back on output: far from
+            # the origin, expanded squares (|a|^2 - 2ab + |b|^2) lose the digits that decide an
+            # edit (a horse moved by 1e6 of its size changed by 0.006 of it; issue 12).
+            self.origin = (self.mesh.V.min(axis=0) + self.mesh.V.max(axis=0)) / 2
+            self.mesh.V = self.mesh.V - self.origin
+            self._input_V = np.asarray(V, dtype=np.float64) - self.origin
         with self._timed("components"):
             # clean_mesh found them already (None: compute them here)
             self.n_components, self.labels = (self.mesh.components
@@ -265,6 +270,8 @@ class SkeletonRun:
             _, nn = cKDTree(self.mesh.V).query(self._input_V[iso])
             wi = wi.copy()
             wi[iso] = nn
+        joints = np.array(joints, dtype=np.float64)
+        joints[:, :3] += self.origin
         return Skeleton(joints, bones, bone_w[wi], t_w[wi], energy=list(E),
                         timings=dict(self.timings), meta=self._meta())
 
