@@ -52,6 +52,9 @@ Progress = Callable[[str, float], None]
 SURFACE_RADII = True
 #: Chain smoothing after the fit of E (weight of the second difference; see smooth_chains).
 FIT_SMOOTHING = 0.3
+#: Joints that the fit of E (or the smoothing after it) moved into a fold go back to where the
+#: edit stage left them (see undo_new_folds).
+FOLD_GUARD = True
 
 
 class SkeletonRun:
@@ -224,6 +227,7 @@ class SkeletonRun:
             for _ in self.steps():
                 pass
         st, s = self.state, self._solver_state
+        before_fit = st.joints.copy()
         t0 = time.perf_counter()
         with self._timed("finish"):
             st.joints = _flip_radii(s.joints)
@@ -238,6 +242,11 @@ class SkeletonRun:
                     # opposite directions reads as a zig-zag: smooth it out along the chains
                     st.joints[:, :3] = smooth_chains(st.joints, st.bones, FIT_SMOOTHING)
                 if SURFACE_RADII:
+                    st.joints[:, 3], st.bone, st.t = fit_radii_surface(
+                        st.V, st.weights, st.joints, st.bones)
+                if FOLD_GUARD and undo_new_folds(st.joints, st.bones, before_fit,
+                                                 float(np.linalg.norm(np.ptp(st.V, axis=0)))).any() \
+                        and SURFACE_RADII:
                     st.joints[:, 3], st.bone, st.t = fit_radii_surface(
                         st.V, st.weights, st.joints, st.bones)
             st.record("radii", time.perf_counter() - t0)
@@ -288,6 +297,44 @@ class SkeletonRun:
         if getattr(self, "contain_log", None) is not None:
             meta["contain"] = self.contain_log
         return meta
+
+
+def undo_new_folds(joints, bones, before, D, *, rounds: int = 3) -> np.ndarray:
+    """Put back the joints of bones that fold although they did not in ``before`` (in place).
+
+    Why: E is low wherever the balls explain the surface, so where two chains pass a thin
+    place the fit may pull both onto it: a fold (two bones within 0.01 D that are far apart
+    along the skeleton; fertility's handles: 0.014 -> 0.056 of its bones). The edit stage's
+    curve had no such pair, so its joints are the better place for those bones.
+
+    Parameters
+    ----------
+    joints : (J, 4) float, changed in place (x, y, z only)
+    bones : (B, 2) int
+    before : (J, 4) float
+        The same joints before the fit.
+    D : float
+        The mesh's bounding-box diagonal (the unit of the fold measure).
+
+    Returns
+    -------
+    (J,) bool : the joints put back.
+    """
+    from .quality import fold_pairs
+
+    old = {tuple(p) for p in fold_pairs(before, bones, D).tolist()}
+    back = np.zeros(len(joints), bool)
+    for _ in range(rounds):
+        new = [p for p in fold_pairs(joints, bones, D).tolist() if tuple(p) not in old]
+        if not new:
+            break
+        j = np.unique(bones[np.unique(np.asarray(new).ravel())].ravel())
+        j = j[~back[j]]
+        if not len(j):
+            break
+        joints[j, :3] = before[j, :3]
+        back[j] = True
+    return back
 
 
 def _flip_radii(joints) -> np.ndarray:

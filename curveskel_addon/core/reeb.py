@@ -503,6 +503,43 @@ def first_approximation(V, F, *, spacing: float, seed: int) -> FirstApproximatio
     if region_bones is not None:
         fa.region, fa.bone_region = rb.reg_v.astype(np.int64), bone_reg
     fa.f = f
+    return _canonical_order(fa)
+
+
+def _canonical_order(fa: FirstApproximation) -> FirstApproximation:
+    """Joints and bones renumbered in an order of the shape, not of the vertices.
+
+    Regions and loops are numbered by connected-component labels, which follow the vertex
+    numbering; the edit stage walks chains in joint order and merges one joint at a time, so a
+    permuted or rotated copy of the mesh could be edited differently (issue 12: the torus had
+    27-30 joints under rotation, scaling or a move, now 28 each time; the hand rotated moved by
+    5.2e-4 of its size, now 2.5e-6).
+    Joints are sorted by the mean f of the vertices on their bones (the lowest of their bones),
+    then radius, then position (only exact ties reach it); each bone runs from its lower joint
+    number, bones sorted by their joints."""
+    if fa.f is None or len(fa.bones) == 0:
+        return fa
+    J, B = len(fa.joints), len(fa.bones)
+    cnt = np.bincount(fa.bone, minlength=B)
+    fb = np.bincount(fa.bone, weights=fa.f, minlength=B) / np.maximum(cnt, 1)
+    fb[cnt == 0] = np.inf
+    key = np.full(J, np.inf)
+    np.minimum.at(key, fa.bones[:, 0], fb)
+    np.minimum.at(key, fa.bones[:, 1], fb)
+    X = fa.joints
+    order = np.lexsort((X[:, 2], X[:, 1], X[:, 0], X[:, 3], key))
+    new = np.empty(J, np.int64)
+    new[order] = np.arange(J)
+    bones = new[fa.bones]
+    swap = bones[:, 0] > bones[:, 1]
+    bones[swap] = bones[swap][:, ::-1]
+    border = np.lexsort((bones[:, 1], bones[:, 0]))
+    bnew = np.empty(B, np.int64)
+    bnew[border] = np.arange(B)
+    t = np.where(swap[fa.bone], 1.0 - fa.t, fa.t)
+    fa.joints, fa.bones, fa.bone, fa.t = X[order], bones[border], bnew[fa.bone], t
+    if fa.bone_region is not None:
+        fa.bone_region = fa.bone_region[border]
     return fa
 
 

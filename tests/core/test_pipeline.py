@@ -145,3 +145,40 @@ def test_joint_budget_is_met_and_keeps_the_topology(budget):
     sk = skeletonize(V, F, spacing=0.01, simplify=0.0, max_joints=budget)
     assert len(sk.joints) <= budget
     assert (sk.degree() == 1).sum() == 4 and graph_figures(sk) == (1, 0)
+
+
+def _u_chain():
+    """A U of 9 joints: left arm down x = 0, bottom, right arm up x = 1 (arms 1 apart, 4 along)."""
+    left = [[0.0, 1.0 - 0.25 * k, 0.0] for k in range(4)]
+    bottom = [[0.5, 0.0, 0.0]]
+    right = [[1.0, 0.25 * k, 0.0] for k in range(4)]
+    X = np.array(left + [[0.0, 0.0, 0.0]] + bottom + [[1.0, 0.0, 0.0]] + right[1:], float)
+    J = np.c_[X, np.full(len(X), 0.05)]
+    return J, np.array([[k, k + 1] for k in range(len(J) - 1)])
+
+
+def test_a_fit_that_folds_two_arms_together_is_undone_and_other_moves_kept():
+    from curveskel_addon.core.pipeline import undo_new_folds
+    from curveskel_addon.core.quality import fold_pairs
+
+    before, bones = _u_chain()
+    D = 1.5
+    after = before.copy()
+    after[-1, :3] = [0.005, 1.0, 0.0]          # the right arm's tip onto the left arm's top
+    after[4, 1] -= 0.05                          # a harmless move at the bottom
+    assert len(fold_pairs(after, bones, D)) > 0 and len(fold_pairs(before, bones, D)) == 0
+    back = undo_new_folds(after, bones, before, D)
+    assert len(fold_pairs(after, bones, D)) == 0
+    assert back[-1] and not back[4]
+    assert np.allclose(after[-1], before[-1]) and after[4, 1] == before[4, 1] - 0.05
+
+
+def test_folds_that_were_there_before_the_fit_are_left_alone():
+    from curveskel_addon.core.pipeline import undo_new_folds
+
+    before, bones = _u_chain()
+    before[-1, :3] = [0.005, 1.0, 0.0]           # already folded by the edit stage
+    after = before.copy()
+    after[-1, 2] += 0.001
+    assert not undo_new_folds(after, bones, before, 1.5).any()
+    assert after[-1, 2] == before[-1, 2] + 0.001
