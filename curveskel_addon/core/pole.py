@@ -32,7 +32,7 @@ from scipy.sparse.csgraph import dijkstra
 from .errors import CurveSkelError
 from .mesh_graph import adjacency, edge_csr
 
-__all__ = ["find_pole", "geodesic_from", "edge_graph", "POLE_SLACK"]
+__all__ = ["find_pole", "geodesic_from", "edge_graph", "graph_with", "POLE_SLACK"]
 
 #: Candidates for the pole: graph distance from v2 at least (1 - POLE_SLACK) * max.
 POLE_SLACK = 0.1
@@ -56,6 +56,17 @@ def edge_graph(n: int, E: np.ndarray, lengths: np.ndarray):
     return adjacency(n, E, w)
 
 
+def graph_with(n: int, E: np.ndarray, lengths: np.ndarray, extra=None):
+    """:func:`edge_graph`, with ``extra`` = (n_extra, E_extra, w_extra) nodes and edges added
+    (numbered from n: the paths through the inside, :class:`.interior.InteriorGrid`)."""
+    if extra is None or extra[0] == 0:
+        return edge_graph(n, E, lengths)
+    n_extra, E_extra, w_extra = extra
+    return adjacency(n + int(n_extra), np.concatenate([np.asarray(E, np.int64).reshape(-1, 2),
+                                                       np.asarray(E_extra, np.int64)]),
+                     np.concatenate([np.asarray(lengths, np.float64), np.asarray(w_extra, np.float64)]))
+
+
 def geodesic_from(A, source: int) -> np.ndarray:
     """Graph-geodesic distance from ``source`` to every vertex.
 
@@ -73,7 +84,8 @@ def geodesic_from(A, source: int) -> np.ndarray:
     return dijkstra(A, directed=False, indices=int(source), min_only=True)
 
 
-def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int) -> tuple[int, np.ndarray]:
+def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int,
+              extra=None) -> tuple[int, np.ndarray]:
     """Pole vertex and the mapping function f (graph-geodesic distance from the pole).
 
     Parameters
@@ -84,6 +96,9 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int) -> t
         Unique undirected edges.
     lengths : (e,) float
         Edge lengths (weights of the graph).
+    extra : (n_extra, E_extra, w_extra), optional
+        Extra nodes (numbered from n) and edges of the graph: the paths through the inside
+        (:func:`.interior.interior_grid`). Distances are returned for the vertices only.
     seed : int
         0: start at the vertex farthest from the centroid (independent of vertex order, position,
         scale and rotation); otherwise the seed of a random first vertex
@@ -129,10 +144,10 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int) -> t
         f = np.full(n, np.inf)
         f[v1] = 0.0
         return v1, f
-    A = edge_graph(n, E, lengths)
-    d1 = geodesic_from(A, v1)
+    A = graph_with(n, E, lengths, extra)
+    d1 = geodesic_from(A, v1)[:n]
     v2 = int(np.argmax(np.where(np.isfinite(d1), d1, -1.0)))
-    d = geodesic_from(A, v2)
+    d = geodesic_from(A, v2)[:n]
     d = np.where(np.isfinite(d), d, -1.0)
     top = d.max()
     cand = np.flatnonzero(d >= (1.0 - POLE_SLACK) * top)
@@ -144,4 +159,4 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int) -> t
     else:
         score = np.einsum("ij,ij->i", V[cand] - V[v2], V[cand] - V[v2])
     pole = int(cand[np.argmax(score)])
-    return pole, geodesic_from(A, pole)
+    return pole, geodesic_from(A, pole)[:n]
