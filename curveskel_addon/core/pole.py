@@ -22,6 +22,10 @@ the steps with two deliberate changes, both measured:
   bent; a Euclidean "farthest from v2" would favour the side of the tip facing away from v2,
   and one from a ring's centroid fails on a round cap. Without usable rings (tiny shapes) the
   candidate Euclidean-farthest from v2 is taken.
+* **Mirror-image ties.** On a mirror-symmetric shape (most characters) v1 and v2 come as a pair
+  of mirror images with equal distances, and a plain argmax follows the last bits of the
+  coordinates. Two values within ``TIE`` of the maximum are told apart by the side of a plane of
+  the shape itself (:func:`_chiral_frame`), which no rotation, move or scale changes.
 """
 
 from __future__ import annotations
@@ -36,6 +40,8 @@ __all__ = ["find_pole", "geodesic_from", "edge_graph", "graph_with", "POLE_SLACK
 
 #: Candidates for the pole: graph distance from v2 at least (1 - POLE_SLACK) * max.
 POLE_SLACK = 0.1
+#: Values within this fraction of the maximum count as tied (mirror images; see _argmax_untied).
+TIE = 1e-6
 
 
 def edge_graph(n: int, E: np.ndarray, lengths: np.ndarray):
@@ -137,8 +143,10 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int,
         # the same vertex whatever the order of the vertices, their position, scale or rotation
         # (issue 12). Any other seed draws the paper's random vertex.
         c = V.mean(axis=0)
-        v1 = int(np.argmax(np.einsum("ij,ij->i", V - c, V - c)))
+        frame = _chiral_frame(V)
+        v1 = _argmax_untied(np.einsum("ij,ij->i", V - c, V - c), V, frame)
     else:
+        frame = _chiral_frame(V)
         v1 = int(np.random.default_rng(seed).integers(n))
     if len(E) == 0:
         f = np.full(n, np.inf)
@@ -146,7 +154,7 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int,
         return v1, f
     A = graph_with(n, E, lengths, extra)
     d1 = geodesic_from(A, v1)[:n]
-    v2 = int(np.argmax(np.where(np.isfinite(d1), d1, -1.0)))
+    v2 = _argmax_untied(np.where(np.isfinite(d1), d1, -1.0), V, frame)
     d = geodesic_from(A, v2)[:n]
     d = np.where(np.isfinite(d), d, -1.0)
     top = d.max()
@@ -160,3 +168,46 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int,
         score = np.einsum("ij,ij->i", V[cand] - V[v2], V[cand] - V[v2])
     pole = int(cand[np.argmax(score)])
     return pole, geodesic_from(A, pole)[:n]
+
+
+def _chiral_frame(V):
+    """(centre, normal) of a plane of the shape itself: through the centroid, spanned by the
+    two principal axes along which the shape is most lopsided (largest |third moment|), each
+    pointing to its heavier tail. The side of this plane tells mirror-image points apart in a
+    way no rotation, move or scale of the mesh changes (a mirror plane's own normal has no
+    third moment, so it is not one of the two)."""
+    c = V.mean(axis=0)
+    if len(V) < 4:
+        return c, None
+    lam, axes = np.linalg.eigh(np.cov((V - c).T))
+    Y = (V - c) @ axes
+    m3 = np.einsum("ij,ij,ij->j", Y, Y, Y) / len(V)
+    a, b = np.argsort(-np.abs(m3))[:2]
+    # no such plane when two principal axes are not told apart (a body of revolution: the
+    # capsule) or the shape is not lopsided along one of them (a box): then a plain argmax
+    gap = np.min(np.diff(lam)) / max(lam[-1], 1e-300)
+    skew = np.abs(m3[[a, b]]) / max(lam[-1], 1e-300) ** 1.5
+    if gap < 1e-6 or skew.min() < 1e-6:
+        return c, None
+    ea, eb = axes[:, a] * np.sign(m3[a]), axes[:, b] * np.sign(m3[b])
+    return c, np.cross(ea, eb) if a < b else np.cross(eb, ea)
+
+
+def _argmax_untied(values, P, frame) -> int:
+    """argmax of ``values`` (>= 0); two values within ``TIE`` of the maximum count as tied (a
+    mirror pair) and the one on the positive side of the shape's own plane
+    (:func:`_chiral_frame`) wins.
+
+    Why: on a mirror-symmetric shape the farthest vertex comes as a pair of mirror images with
+    equal values, and a plain argmax then follows the last bits of the coordinates: spot with
+    every vertex moved by 1e-9 of its size started from the other side and got 35 joints
+    instead of 30 (issue 12). The side of the plane separates the twins by their distance."""
+    values = np.asarray(values, np.float64)
+    top = values.max()
+    tied = np.flatnonzero(values >= top - TIE * abs(top))
+    centre, normal = frame
+    if len(tied) != 2 or normal is None:
+        # one best value, or a tie of more than two (a shape with more symmetry than a mirror,
+        # e.g. a box's eight corners: no plane of the shape tells them apart either)
+        return int(np.argmax(values))
+    return int(tied[np.argmax((P[tied] - centre) @ normal)])
