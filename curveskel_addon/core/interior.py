@@ -69,8 +69,14 @@ class InteriorGrid:
         self.mid = (lo + hi) / 2
         if self.h > 0:
             self.dims = np.ceil((hi - lo) / self.h).astype(np.int64) + 1
-            self.inside = inside_cells(self.Y, np.asarray(F, np.int64),
-                                       self.mid - (self.dims - 1) / 2 * self.h, self.dims, self.h)
+            # Rays a small offset off the lattice, both ways: eigh may return an axis either way
+            # round, which maps the lattice onto itself but not a one-sided offset, so a
+            # rotated copy would see other rays (fertility rotated: 8.4e-3 D). Inside = both
+            # rays agree.
+            F = np.asarray(F, np.int64)
+            origin = self.mid - (self.dims - 1) / 2 * self.h
+            self.inside = (inside_cells(self.Y, F, origin, self.dims, self.h, side=1.0)
+                           & inside_cells(self.Y, F, origin, self.dims, self.h, side=-1.0))
         else:
             self.dims = np.ones(3, np.int64)
             self.inside = np.zeros((1, 1, 1), bool)
@@ -136,7 +142,7 @@ class InteriorGrid:
         return n_extra, np.concatenate(E), np.concatenate(W)
 
 
-def inside_cells(Y, F, origin, dims, h):
+def inside_cells(Y, F, origin, dims, h, side: float = 1.0):
     """Whether each point ``origin + (i, j, k) * h`` of a grid is inside a closed surface.
 
     Ray parity along the third axis for all columns at once (scanline voxelisation, O(faces +
@@ -152,12 +158,14 @@ def inside_cells(Y, F, origin, dims, h):
     origin : (3,) float
     dims : (3,) int
     h : float
+    side : float
+        +1 or -1: which way the rays are moved off the lattice.
 
     Returns
     -------
     (dims[0], dims[1], dims[2]) bool
     """
-    off = np.array([0.31830988618, 0.27182818284]) * 1e-3 * h   # 1/pi, e/10 of a thousandth
+    off = side * np.array([0.31830988618, 0.27182818284]) * 1e-3 * h   # 1/pi, e/10 of 1/1000
     P = Y[:, :2] - origin[:2] - off
     A, B, C = P[F[:, 0]], P[F[:, 1]], P[F[:, 2]]
     lo = np.ceil(np.minimum(np.minimum(A, B), C) / h).astype(np.int64)
