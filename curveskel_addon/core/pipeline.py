@@ -231,6 +231,7 @@ class SkeletonRun:
         t0 = time.perf_counter()
         with self._timed("finish"):
             st.joints = _flip_radii(s.joints)
+            _into_box(st)
             st.bone, st.t = self._mapping(st.joints, s)
         st.record("fit", self.timings.get("optimise", 0.0) + time.perf_counter() - t0,
                   iterations=int(s.iteration))
@@ -254,6 +255,7 @@ class SkeletonRun:
             with self._timed("contain"):
                 self.contain_log = contain_stage(st, st.inside, st.medial, diag=st.size,
                                                  max_joints=self.params.max_joints)
+                _into_box(st)
             st.record("contain", time.perf_counter() - t0)
         # E after every stage (all vertices, each stage's own mapping); the last is the E of
         # the returned skeleton with its returned mapping. The fit's iterations are in meta.
@@ -335,6 +337,15 @@ def undo_new_folds(joints, bones, before, D, *, rounds: int = 3) -> np.ndarray:
         joints[j, :3] = before[j, :3]
         back[j] = True
     return back
+
+
+def _into_box(st) -> None:
+    """Joints outside the mesh's bounding box projected onto it (in place).
+
+    A joint outside the box is outside the shape. On a tiny flat solid (8-40 hull points,
+    issue 12's property test) the fit can push one there, and the medial point a bone is split
+    at can lie off a shape that has almost no inside."""
+    st.joints[:, :3] = np.clip(st.joints[:, :3], st.V.min(axis=0), st.V.max(axis=0))
 
 
 def _flip_radii(joints) -> np.ndarray:
