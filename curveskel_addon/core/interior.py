@@ -9,7 +9,8 @@ fertility: 17, 7 and 4 first-approximation joints outside the mesh). With paths 
 inside, f is close to the distance *through the volume*: a contour line goes round the part's
 cross-section and its centre lies on the part's centre curve, so each cycle goes round its hole.
 
-Only for surfaces with handles (genus >= 1, :func:`.reeb.first_approximation`): on a shape
+Used only for surfaces with handles whose surface-distance first approximation has joints in a
+hole (:func:`.reeb.first_approximation` keeps the result with fewer joints outside): on a shape
 without holes a distance through the volume is close to a straight-line one, whose level sets
 cut a limb that runs across them (spot's legs) in one piece with the body, so the limb would
 not get its own branch; the surface distance does that well.
@@ -18,9 +19,9 @@ The inside is a grid of cubes (``RESOLUTION`` along the longest principal extent
 the principal axes of the vertices and symmetric about the middle of the box they span, so a
 rotated copy of the mesh gets the same cubes (the sign and order of the axes map the grid onto
 itself; issue 12). The cube centres inside the mesh (ray parity along one axis, all columns at
-once) are nodes joined to their 26 neighbours inside, and every vertex is joined to the nearest
-inside centre of the 8 cubes around it. A part thinner than a cube has no centre inside and keeps its
-surface paths only.
+once) are nodes joined to their 26 neighbours inside, and every vertex is joined to the
+nearest inside centre of the 8 cubes around it. A part thinner than a cube has no centre inside
+and keeps its surface paths only.
 """
 
 from __future__ import annotations
@@ -30,8 +31,8 @@ import numpy as np
 __all__ = ["InteriorGrid", "inside_cells", "RESOLUTION"]
 
 #: Cubes along the longest principal extent of the vertices (64: 3holes' plate, 0.35 of its
-#: 0.47 width thick, is 22 cubes thick; 48 and 80 also close the cycles round the holes, with
-#: more folds or a lost loop on some of the shared meshes).
+#: 0.47 width thick, is 22 cubes thick; with f through the inside on every mesh, 48 and 80 gave
+#: more folds, and 80 lost one of 3holes' loops).
 RESOLUTION = 64
 
 
