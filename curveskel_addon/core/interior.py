@@ -82,17 +82,23 @@ class InteriorGrid:
             self.dims = np.ones(3, np.int64)
             self.inside = np.zeros((1, 1, 1), bool)
 
+    def _around(self, Y):
+        """The 8 lattice points around each point of ``Y`` (grid frame): yields (index (k, 3),
+        on the grid (k,) bool, its position (k, 3) in the grid frame)."""
+        half = (self.dims - 1) / 2
+        base = np.floor((Y - self.mid) / max(self.h, 1e-300) + half).astype(np.int64)
+        for corner in np.indices((2, 2, 2)).reshape(3, -1).T:
+            c = base + corner
+            yield c, np.all((c >= 0) & (c < self.dims), axis=1), self.mid + (c - half) * self.h
+
     def contains(self, P) -> np.ndarray:
         """(k,) bool: whether any of the 8 lattice points around each point of ``P`` (k, 3) is
         inside. A point in a hole wider than two cubes is not; a point inside the shape, or
         within a cube of its surface, is (a coarse test: for finding joints that lie in holes,
         where a cycle closed across instead of round)."""
         Y = (np.asarray(P, np.float64).reshape(-1, 3) - self.mean) @ self.axes
-        base = np.floor((Y - self.mid) / max(self.h, 1e-300) + (self.dims - 1) / 2).astype(np.int64)
         out = np.zeros(len(Y), bool)
-        for corner in np.indices((2, 2, 2)).reshape(3, -1).T:
-            c = base + corner
-            ok = np.all((c >= 0) & (c < self.dims), axis=1)
+        for c, ok, _ in self._around(Y):
             out[ok] |= self.inside[c[ok, 0], c[ok, 1], c[ok, 2]]
         return out
 
@@ -109,7 +115,7 @@ class InteriorGrid:
         w : (e,) float
             Their lengths.
         """
-        n, h, dims, mid, Y = self.n, self.h, self.dims, self.mid, self.Y
+        n, h, dims = self.n, self.h, self.dims
         n_extra = int(self.inside.sum())
         if n_extra == 0 or not h > 0:
             return 0, np.zeros((0, 2), np.int64), np.zeros(0)
@@ -126,15 +132,12 @@ class InteriorGrid:
         # each vertex to the nearest inside centre among the 8 cubes around it (one edge is
         # enough for a path to enter the inside there; all 8 made the graph 3x larger and the
         # pole's Dijkstra runs 5x slower on a million vertices)
-        base = np.floor((Y - mid) / h + (dims - 1) / 2).astype(np.int64)
         best = np.full(n, np.inf)
         best_node = np.full(n, -1, np.int64)
-        for corner in np.indices((2, 2, 2)).reshape(3, -1).T:
-            c = base + corner
-            ok = np.all((c >= 0) & (c < dims), axis=1)
+        for c, ok, at in self._around(self.Y):
             cn = np.full(n, -1, np.int64)
             cn[ok] = grid[c[ok, 0], c[ok, 1], c[ok, 2]]
-            d = np.linalg.norm(Y - (mid + (c - (dims - 1) / 2) * h), axis=1)
+            d = np.linalg.norm(self.Y - at, axis=1)
             better = (cn >= 0) & (d < best)
             best[better], best_node[better] = d[better], cn[better]
         vid = np.flatnonzero(best_node >= 0)

@@ -245,8 +245,10 @@ class SkeletonRun:
                 if SURFACE_RADII:
                     st.joints[:, 3], st.bone, st.t = fit_radii_surface(
                         st.V, st.weights, st.joints, st.bones)
+                from .quality import bbox_diagonal       # (lazy, as the stages import it)
+
                 if FOLD_GUARD and undo_new_folds(st.joints, st.bones, before_fit,
-                                                 float(np.linalg.norm(np.ptp(st.V, axis=0)))).any() \
+                                                 bbox_diagonal(st.V)).any() \
                         and SURFACE_RADII:
                     st.joints[:, 3], st.bone, st.t = fit_radii_surface(
                         st.V, st.weights, st.joints, st.bones)

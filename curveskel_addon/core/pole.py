@@ -52,14 +52,19 @@ def edge_graph(n: int, E: np.ndarray, lengths: np.ndarray):
     explicit zero weight from a missing edge, hence the tiny positive floor.
     """
     E = np.asarray(E, dtype=np.int64).reshape(-1, 2)
-    lengths = np.asarray(lengths, dtype=np.float64)
-    pos = lengths[lengths > 0]
-    w = np.maximum(lengths, (pos.min() if len(pos) else 1.0) * 1e-9)
+    w = _positive(lengths)
     if len(E) and np.all(E[:, 0] < E[:, 1]):
         key = E[:, 0] * n + E[:, 1]
         if np.all(key[1:] > key[:-1]):
             return edge_csr(n, E, w)
     return adjacency(n, E, w)
+
+
+def _positive(lengths) -> np.ndarray:
+    """Lengths with zeros raised to 1e-9 of the smallest positive one (see :func:`edge_graph`)."""
+    lengths = np.asarray(lengths, dtype=np.float64)
+    pos = lengths[lengths > 0]
+    return np.maximum(lengths, (pos.min() if len(pos) else 1.0) * 1e-9)
 
 
 def graph_with(n: int, E: np.ndarray, lengths: np.ndarray, extra=None):
@@ -70,7 +75,8 @@ def graph_with(n: int, E: np.ndarray, lengths: np.ndarray, extra=None):
     n_extra, E_extra, w_extra = extra
     return adjacency(n + int(n_extra), np.concatenate([np.asarray(E, np.int64).reshape(-1, 2),
                                                        np.asarray(E_extra, np.int64)]),
-                     np.concatenate([np.asarray(lengths, np.float64), np.asarray(w_extra, np.float64)]))
+                     _positive(np.concatenate([np.asarray(lengths, np.float64),
+                                               np.asarray(w_extra, np.float64)])))
 
 
 def geodesic_from(A, source: int) -> np.ndarray:
@@ -104,7 +110,7 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int,
         Edge lengths (weights of the graph).
     extra : (n_extra, E_extra, w_extra), optional
         Extra nodes (numbered from n) and edges of the graph: the paths through the inside
-        (:func:`.interior.interior_grid`). Distances are returned for the vertices only.
+        (:meth:`.interior.InteriorGrid.graph`). Distances are returned for the vertices only.
     seed : int
         0: start at the vertex farthest from the centroid (independent of vertex order, position,
         scale and rotation); otherwise the seed of a random first vertex
@@ -138,15 +144,14 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int,
     E = np.asarray(E, dtype=np.int64).reshape(-1, 2)
     if len(np.asarray(lengths)) != len(E):
         raise CurveSkelError(f"find_pole: {len(E)} edges but {len(lengths)} lengths")
+    frame = _chiral_frame(V)
     if seed == 0:
         # The default start is the vertex farthest from the centroid (the tip of some part):
         # the same vertex whatever the order of the vertices, their position, scale or rotation
         # (issue 12). Any other seed draws the paper's random vertex.
         c = V.mean(axis=0)
-        frame = _chiral_frame(V)
         v1 = _argmax_untied(np.einsum("ij,ij->i", V - c, V - c), V, frame)
     else:
-        frame = _chiral_frame(V)
         v1 = int(np.random.default_rng(seed).integers(n))
     if len(E) == 0:
         f = np.full(n, np.inf)

@@ -14,55 +14,22 @@ composition turns one tip onto the other) have ties that no rule of the shape's 
 so they are not asserted; docs/benchmarks.md lists the measured figures.
 """
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
-from scipy.spatial import cKDTree
-from scipy.spatial.transform import Rotation
 
 from curveskel_addon.core import skeletonize
 from curveskel_addon.core.mesh_io import read_mesh
 
-TOLERANCE = 1e-3        # of the bounding-box diagonal
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "scripts"))
+from invariance_table import TOLERANCE, curve_gap, transformed  # noqa: E402
 
-
-def curve_points(joints, bones, step):
-    """The joints and points every ``step`` along every bone."""
-    X = joints[:, :3]
-    pts = [X]
-    for a, b in bones:
-        n = max(2, int(np.ceil(np.linalg.norm(X[b] - X[a]) / step)) + 1)
-        pts.append(X[a] + np.linspace(0.0, 1.0, n)[:, None] * (X[b] - X[a]))
-    return np.vstack(pts)
-
-
-def curve_distance(sk1, joints2, bones2, D):
-    """Largest distance from a point of either curve to the other, / D."""
-    P = curve_points(sk1.joints, sk1.bones, D / 1000)
-    Q = curve_points(joints2, bones2, D / 1000)
-    return max(cKDTree(Q).query(P)[0].max(), cKDTree(P).query(Q)[0].max()) / D
-
-
-def transformed(V, F, name):
-    """(V', F', undo) for one transform of the issue; undo maps joints back."""
-    rng = np.random.default_rng(1)
-    D = float(np.linalg.norm(np.ptp(V, axis=0)))
-    c = V.mean(axis=0)
-    if name == "permuted":
-        p = rng.permutation(len(V))
-        inv = np.argsort(p)
-        return V[p], inv[F][rng.permutation(len(F))], lambda X: X
-    if name == "rotated":
-        R = Rotation.random(random_state=3).as_matrix()
-        return (V - c) @ R.T + c, F, lambda X: (X - c) @ R + c
-    if name.startswith("scaled"):
-        k = float(name.split()[1])
-        return V * k, F, lambda X: X / k
-    if name == "moved by 1e6 D":
-        shift = np.array([1.0, -0.5, 0.25]) * 1e6 * D
-        return V + shift, F, lambda X: X - shift
-    if name == "jittered by 1e-9 D":
-        return V + rng.uniform(-1.0, 1.0, V.shape) * 1e-9 * D, F, lambda X: X
-    raise ValueError(name)
+#: test names -> the table's transform codes
+CASES = {"permuted": "perm", "rotated": "rot", "scaled 1e6": "s1e6", "scaled 1e-6": "s1e-6",
+         "moved by 1e6 D": "t1e6", "jittered by 1e-9 D": "jit"}
 
 
 @pytest.fixture(scope="module")
@@ -79,10 +46,10 @@ def horse(shared_meshes):
 
 def check_same(base, V, F, name):
     D = float(np.linalg.norm(np.ptp(V, axis=0)))
-    V2, F2, undo = transformed(V, F, name)
+    V2, F2, undo = transformed(V, F, CASES[name], D)
     sk = skeletonize(V2, F2)
     assert (sk.n_joints, sk.n_bones) == (base.n_joints, base.n_bones), name
-    d = curve_distance(base, undo(sk.joints[:, :3]), sk.bones, D)
+    d = curve_gap(base, (undo(sk.joints[:, :3]), sk.bones), D)
     assert d <= TOLERANCE, f"{name}: the curves differ by {d:.2e} D"
     return sk
 
