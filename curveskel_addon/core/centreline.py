@@ -277,18 +277,21 @@ def _radii_for_distances(d, w, J, bones, bone, t, smooth):
     return np.maximum(r, 0.0)
 
 
-def _signed_depth(tree, inside, V=None, F=None, k: int = 8):
+def _signed_depth(tree, inside, V=None, F=None, k: int = 8, ids=None):
     """Distance to the surface, negative outside the mesh: the centroid of a curved medial set
     (a ring's arc) can fall in the hole, far from the surface but not in the shape.
 
     The distance is to the triangles around the ``k`` nearest vertices (``tree``: a KD-tree of
     the vertices), not to the nearest vertex: a point lying on a large face is ~0 deep, so
     whether the ray-parity test calls it inside or outside (a matter of the last bits there)
-    cannot change a decision that compares depths (the octopus scaled by 1e6: 0.011 D)."""
+    cannot change a decision that compares depths (the octopus scaled by 1e6: 0.011 D).
+    ``ids``: the vertex of each point of ``tree``, if it holds a subset of the vertices."""
     def depth(P):
         P = np.asarray(P, np.float64).reshape(-1, 3)
         d, nn = tree.query(P, k=min(k, tree.n))
         d, nn = d.reshape(len(P), -1), nn.reshape(len(P), -1)
+        if ids is not None:
+            nn = ids[nn]
         if F is not None and len(P):
             d0 = d[:, 0].copy()
             verts = np.unique(nn)
@@ -329,20 +332,28 @@ def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0, key=None, weig
     balls : MedialBalls, with its KD-tree of the surface vertices (reusable)
     """
     from .medial import MedialBalls
-    from .state import canonical_sample
+    from .state import canonical_sample, canonical_subset
     from .vertex_area import vertex_areas
     n = len(V)
-    if n <= k:
-        idx = np.arange(n)
-    else:
-        a = vertex_areas(V, F) if weights is None else weights
-        idx = canonical_sample(np.arange(n) if key is None else key, k, seed, p=a)
+    key = np.arange(n) if key is None else key
+    order = np.argsort(key, kind="stable")
+    a = vertex_areas(V, F) if weights is None and n > min(k, MEDIAL_TREE_POINTS) else weights
+    idx = np.arange(n) if n <= k else canonical_sample(key, k, seed, p=a, order=order)
     X = np.asarray(fa_joints)[:, :3]
     i, j = fa_bones[bone[idx], 0], fa_bones[bone[idx], 1]
     sig = t[idx, None] * X[i] + (1.0 - t[idx, None]) * X[j]
     d = np.linalg.norm(V[idx] - sig, axis=1)
-    balls = MedialBalls(V, F)
-    M, rho = balls.at(idx, rho0=2.0 * d)        # (floored at 1e-12 of the size inside: no unit)
+    points = None
+    if n > MEDIAL_TREE_POINTS:
+        # The balls shrink against an area-weighted subsample of the surface (the samples
+        # included): on a huge mesh the k-NN queries of balls centred on an axis visit the
+        # whole ring of vertices around it, and vertices this dense add nothing measurable
+        # (a ball can bulge through the subsample's gaps by their sagitta, ~gap^2 / radius).
+        keep = canonical_subset(key, MEDIAL_TREE_POINTS, seed + 1, p=a, order=order)
+        points = np.union1d(keep, idx)
+    balls = MedialBalls(V, F, points=points)
+    q = idx if points is None else np.searchsorted(points, idx)
+    M, rho = balls.at(q, rho0=2.0 * d)          # (floored at 1e-12 of the size inside: no unit)
     return idx, M, rho, balls
 
 
@@ -354,6 +365,8 @@ CENTRE_ROUNDS = 1
 MAP_VERTICES = True
 #: Medial samples used for centring (area-weighted vertices; their average is what counts).
 MEDIAL_SAMPLES = 3000
+#: Surface points the medial balls shrink against, at most (an area-weighted subsample above).
+MEDIAL_TREE_POINTS = 250_000
 #: Bones of branching regions are split into pieces of this many contour spacings before
 #: centring, so a limb's bone that starts at the centre of the body can bend into the limb.
 JUNCTION_SPLIT = 2.0
@@ -377,7 +390,8 @@ def centre_stage(state, spacing_abs, *, smooth, seed=0):
     from .edit import collapse_short_bones
     V, F = state.V, state.F
     idx, M, rho, balls = medial_samples(V, F, state.joints, state.bones, state.bone, state.t,
-                                        MEDIAL_SAMPLES, seed=seed, key=state.key)
+                                        MEDIAL_SAMPLES, seed=seed, key=state.key,
+                                        weights=state.areas)
     state.medial = (M, rho)
     # contract the tiny bones (direction noise), then split the bones of branching regions
     joints, bones, bmap = collapse_short_bones(state.joints, state.bones,
@@ -400,7 +414,8 @@ def centre_stage(state, spacing_abs, *, smooth, seed=0):
     reg = np.repeat(state.pairs[:, 0], cnt)
     local = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
     state.pairs = np.unique(np.stack([reg, o[np.repeat(st[state.pairs[:, 1]], cnt) + local]], 1), axis=0)
-    depth = _signed_depth(balls.tree, state.inside, V, F) if DEPTH_SELECT else None
+    depth = (_signed_depth(balls.tree, state.inside, V, F, ids=balls.ids) if DEPTH_SELECT
+             else None)
     X, _, _ = fit_centreline(M, rho, joints, bones, state.candidates(idx), smooth=smooth,
                              rounds=CENTRE_ROUNDS, map_points=V[idx] if MAP_VERTICES else None,
                              depth=depth)

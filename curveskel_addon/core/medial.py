@@ -104,10 +104,15 @@ class MedialBalls:
     min_angle : float
         Degrees: a shrink towards a point seen from the new centre within this angle of the
         touching point is noise and ends the shrinking (the ball is kept as it was).
+    points : (k,) int, sorted, optional
+        The used vertices (indices into them) the balls shrink against and touch; default all.
+        :meth:`at` then takes indices into this subset.
     """
 
-    def __init__(self, V, F, *, max_iterations: int = 30, min_angle: float = MIN_ANGLE):
+    def __init__(self, V, F, *, max_iterations: int = 30, min_angle: float = MIN_ANGLE,
+                 points=None):
         self._mesh = (V, F)
+        self._subset = None if points is None else np.asarray(points, dtype=np.int64)
         self.max_iterations = max_iterations
         self.cos_min = float(np.cos(np.radians(min_angle)))
         self._built = False
@@ -124,6 +129,8 @@ class MedialBalls:
         used[np.asarray(F, dtype=np.int64).ravel()] = True
         n_used = int(used.sum())
         self._pts, self._nrm = pts[:n_used], nrm[:n_used]
+        if self._subset is not None:
+            self._pts, self._nrm = self._pts[self._subset], self._nrm[self._subset]
         # Leaves of 64: a ball centred on the medial axis is nearly equidistant from a whole
         # band of the surface and its k-NN query visits every leaf whose (non-tight) cell
         # reaches into the empty interior; bigger leaves mean fewer such cells (same result,
@@ -134,8 +141,13 @@ class MedialBalls:
         self._built = True
 
     @property
+    def ids(self):
+        """(k,) int: the used vertex behind each point of :attr:`pts` (None: all, in order)."""
+        return self._subset
+
+    @property
     def pts(self):
-        """(k, 3) the surface samples (the mesh's used vertices)."""
+        """(k, 3) the surface samples (the mesh's used vertices, or the chosen subset)."""
         self._build()
         return self._pts
 

@@ -102,6 +102,15 @@ class SkeletonRun:
         yield
         self.timings[stage] = self.timings.get(stage, 0.0) + time.perf_counter() - t0
 
+    _inside = None
+
+    def _inside_test(self):
+        """The working mesh's exact inside test, built once (the state's, later)."""
+        if self._inside is None:
+            from .quality import InsideTest
+            self._inside = InsideTest(self.mesh.V, self.mesh.F)
+        return self._inside
+
     def _initialise(self) -> PipelineState:
         """First approximation of every component, in one graph (regions numbered globally)."""
         V, F, p = self.mesh.V, self.mesh.F, self.params
@@ -124,7 +133,10 @@ class SkeletonRun:
             Fc = local[F[forder[fstarts[c]:fstarts[c + 1]]]]
             # one seed for every component: seed 0 starts each pole search at the vertex farthest from its
             # centroid, so the skeleton does not depend on how the components are numbered
-            fa = first_approximation(V[vids], Fc, spacing=p.spacing, seed=p.seed)
+            # one component: the whole working mesh, whose exact inside test the later stages
+            # build anyway (the first approximation may use it)
+            fa = first_approximation(V[vids], Fc, spacing=p.spacing, seed=p.seed,
+                                     inside=self._inside_test if self.n_components == 1 else None)
             for stage, sec in fa.meta.get("timings", {}).items():
                 self.timings[stage] = self.timings.get(stage, 0.0) + sec
             if fa.region is None:             # one bone for the whole component
@@ -150,14 +162,18 @@ class SkeletonRun:
             self.progress("first_approximation", (c + 1) / self.n_components)
         self.component_meta = comp_meta
         self._bone_spacing = np.concatenate(spacing)
+        areas = None
         with self._timed("weights"):
             if p.area_weighted:
-                w = vertex_areas(V, F)
-                w = w * (len(V) / max(w.sum(), 1e-300))   # mean 1: E stays on the vertex-sum scale
+                areas = vertex_areas(V, F)
+                # mean 1: E stays on the vertex-sum scale
+                w = areas * (len(V) / max(areas.sum(), 1e-300))
             else:
                 w = np.ones(len(V))
         st = PipelineState(V, F, w, np.concatenate(joints), np.concatenate(bones), bone, t, region,
                            np.unique(np.concatenate(pairs), axis=0))
+        st.areas = areas
+        st._inside = self._inside
         st.key = np.where(np.isfinite(key), key, 0.0)
         st.record("initialise", sum(self.timings.get(k, 0.0) for k in
                                     ("pole", "contours", "reeb", "meb", "mapping")))

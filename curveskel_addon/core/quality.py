@@ -618,9 +618,17 @@ class _RayGrid:
 
     def parity(self, P):
         """Parity of crossings of the ray from each point (n, 3) along the grid's direction."""
+        return self.parities(P)[0]
+
+    def parities(self, P):
+        """Parities of crossings of the two rays from each point (n, 3) along the grid's line,
+        forwards and backwards: (n,) int each. On a closed surface they agree unless the line
+        grazes an edge or a vertex, which spoils one side only (the graze is on one side of the
+        point): two independent votes for the price of one grid."""
         glo, ghi = self.glo, self.ghi
         Pr = P @ self.R.T
         parity = np.zeros(len(P), np.int64)
+        back = np.zeros(len(P), np.int64)
         pin = np.all((Pr[:, 1:] >= glo) & (Pr[:, 1:] <= ghi), axis=1)
         pids = np.flatnonzero(pin)
         S, N = self._sources(Pr[pids, 1:])
@@ -647,9 +655,10 @@ class _RayGrid:
             ws = w0 + w1 + w2
             with np.errstate(divide="ignore", invalid="ignore"):
                 xh = (w0 * t[:, 0, 0] + w1 * t[:, 1, 0] + w2 * t[:, 2, 0]) / ws
-            hit &= xh > Pr[pp, 0]
-            parity += np.bincount(pp[hit], minlength=len(P))
-        return parity % 2
+            ahead = xh > Pr[pp, 0]
+            parity += np.bincount(pp[hit & ahead], minlength=len(P))
+            back += np.bincount(pp[hit & (xh < Pr[pp, 0])], minlength=len(P))
+        return parity % 2, back % 2
 
 
 def _radix_argsort(key, n_keys):
@@ -670,10 +679,11 @@ def _radix_argsort(key, n_keys):
 class InsideTest:
     """Inside test of a closed triangle mesh, built once and queried many times.
 
-    Ray parity along ``n_rays`` random directions (majority vote). Each direction is a random
-    rotation (seeded), so rays along symmetry planes of a procedural mesh do not graze its
-    edges; a grazing ray can miscount, the vote absorbs it. Building costs O(faces) per ray, a
-    query O(points) plus the triangles in the points' grid cells.
+    Ray parity along ``n_rays`` rays (majority vote): both ways along a random line, then along
+    a second line where those two disagree. Each line is a random rotation (seeded), so rays
+    along symmetry planes of a procedural mesh do not graze its edges; a grazing ray can
+    miscount, the vote absorbs it (a graze spoils one way only). Building costs O(faces) per
+    line, a query O(points) plus the triangles in the points' grid cells.
 
     Parameters
     ----------
@@ -718,13 +728,18 @@ class InsideTest:
         need = n // 2 + 1                               # votes that decide
         votes = np.zeros(len(P), np.int64)
         open_ = np.arange(len(P))
-        for k in range(n):
-            if not open_.size:
-                break
-            votes[open_] += self._grid(k).parity(P[open_])
-            # Still open: no majority yet, and the n - k - 1 rays left could still make one.
+        # The rays in order: both ways along the first grid's line, then the next grids' lines
+        # (one way, or both if the votes still need two): one grid decides nearly every point.
+        k = cast = 0
+        while cast < n and open_.size:
+            ahead, back = self._grid(k).parities(P[open_])
+            both = cast + 2 <= n
+            votes[open_] += ahead + back if both else ahead
+            cast += 2 if both else 1
+            k += 1
+            # Still open: no majority yet, and the rays left could still make one.
             v = votes[open_]
-            open_ = open_[(v < need) & (v + n - k - 1 >= need)]
+            open_ = open_[(v < need) & (v + n - cast >= need)]
         return votes >= need
 
 

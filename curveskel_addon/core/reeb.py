@@ -423,7 +423,7 @@ def _expected_cycles(n, E, ecount, m):
     return max((2 - chi) // 2, 0)
 
 
-def first_approximation(V, F, *, spacing: float, seed: int) -> FirstApproximation:
+def first_approximation(V, F, *, spacing: float, seed: int, inside=None) -> FirstApproximation:
     """First approximation of the curve-skeleton of ONE connected component (paper 4.1).
 
     Parameters
@@ -439,6 +439,10 @@ def first_approximation(V, F, *, spacing: float, seed: int) -> FirstApproximatio
         (adjusted to 6..400 levels, halved where a handle would be lost).
     seed : int
         Seed of the pole search (reproducible).
+    inside : callable, optional
+        Returns an exact inside test of (V, F) (:class:`.quality.InsideTest`) when called:
+        where one is built anyway, a surface with handles whose joints are all inside skips
+        the coarse grid that looks for joints in its holes.
 
     Returns
     -------
@@ -471,8 +475,11 @@ def first_approximation(V, F, *, spacing: float, seed: int) -> FirstApproximatio
         # fewer joints outside is kept. (Not on shapes without holes: there the surface
         # distance separates limbs better.)
         t0 = time.perf_counter()          # (counted in "pole": the cost of f)
-        grid = InteriorGrid(V, F)
-        outside = int(np.count_nonzero(~grid.contains(fa.joints[:, :3])))
+        if inside is not None and inside()(fa.joints[:, :3]).all():
+            outside = 0                   # in the shape, so in no hole: the grid is not needed
+        else:
+            grid = InteriorGrid(V, F)
+            outside = int(np.count_nonzero(~grid.contains(fa.joints[:, :3])))
         fa.meta["outside_joints"] = outside
         if outside:
             # its own pole search (the surface f's pole, reused, left 3holes' first loop

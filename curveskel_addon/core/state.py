@@ -23,19 +23,39 @@ from .problem import FitProblem
 __all__ = ["PipelineState", "candidates_from_pairs", "canonical_sample"]
 
 
-def canonical_sample(key, k, seed=0, p=None):
+def canonical_sample(key, k, seed=0, p=None, order=None):
     """``k`` indices drawn without replacement (probabilities ``p``), in an order that does not
     depend on how the points are numbered: the draw runs over the points sorted by ``key`` (a
     quantity of the shape, e.g. the geodesic distance from the pole), so a permuted, moved,
     rotated or scaled copy of the mesh gets the same points (issue 12). Sorted indices.
+    ``order``: ``np.argsort(key, kind="stable")`` if already at hand.
     """
     key = np.asarray(key, np.float64)
     n = len(key)
     if k >= n:
         return np.arange(n)
-    order = np.argsort(key, kind="stable")
+    order = np.argsort(key, kind="stable") if order is None else order
     q = None if p is None else np.asarray(p, np.float64)[order] / float(np.sum(p))
     pick = np.random.default_rng(seed).choice(n, size=k, replace=False, p=q)
+    return np.sort(order[pick])
+
+
+def canonical_subset(key, k, seed=0, p=None, order=None):
+    """Like :func:`canonical_sample` (numbering-free, sorted indices), in O(n) for large ``k``
+    once ``key`` is sorted: the ``k`` points with the largest ``u ** (1 / p)`` for uniform ``u``
+    drawn in ``key`` order (Efraimidis & Spirakis's weighted sampling without replacement;
+    ``rng.choice`` with probabilities costs 0.2 s for 250k of 1M points, this 0.03 s)."""
+    key = np.asarray(key, np.float64)
+    n = len(key)
+    if k >= n:
+        return np.arange(n)
+    order = np.argsort(key, kind="stable") if order is None else order
+    u = np.random.default_rng(seed).random(n)
+    score = np.log(u)           # log u / p: the same order as u ** (1 / p)
+    if p is not None:
+        w = np.asarray(p, np.float64)[order]
+        score = np.where(w > 0, score / np.where(w > 0, w, 1.0), -np.inf)
+    pick = np.argpartition(-score, k - 1)[:k]
     return np.sort(order[pick])
 
 
@@ -96,6 +116,7 @@ class PipelineState:
     log: list = field(default_factory=list)
     medial: tuple | None = None     # (M (k, 3), rho (k,)): medial points of surface samples
     key: np.ndarray | None = None   # (n,) numbering-free order of the vertices (geodesic f)
+    areas: np.ndarray | None = None  # (n,) vertex areas, if the weights step computed them
     _inside: object = None
     _size: float | None = None
 

@@ -70,3 +70,16 @@ def test_cycles_go_round_their_holes_not_across_them(shared_meshes, monkeypatch,
     assert (~inside(fa.joints[:, :3])).sum() < (~inside(surface.joints[:, :3])).sum()
     sk = skeletonize(V, F)
     assert inside(bone_points(sk.joints, sk.bones, per_bone=10)).mean() >= 0.98
+
+
+@pytest.mark.parametrize("shape", ["torus", "3holes.off"])
+def test_the_exact_inside_test_changes_no_first_approximation(shared_meshes, shape):
+    """Given the exact inside test the pipeline builds anyway, a surface with handles whose
+    joints are all inside (the torus) skips the grid, one with joints in its holes (3holes)
+    still takes the paths through the inside: the same first approximation either way."""
+    V, F = torus(R=3.0, r=1.0) if shape == "torus" else read_mesh(shared_meshes / shape)
+    plain = first_approximation(V, F, spacing=0.025, seed=0)
+    given = first_approximation(V, F, spacing=0.025, seed=0, inside=lambda: InsideTest(V, F))
+    assert given.meta["interior_paths"] is plain.meta["interior_paths"] is (shape != "torus")
+    np.testing.assert_array_equal(given.joints, plain.joints)
+    np.testing.assert_array_equal(given.bones, plain.bones)

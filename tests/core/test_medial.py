@@ -49,3 +49,21 @@ def test_ball_at_nearest_surface_of_an_outside_point_is_the_tube_cross_section()
     c, r = MedialBalls(V, F).at_nearest(np.array([[-2.0, 0.0, 2.0]]))
     assert abs(r[0] - 0.5) < 0.05
     assert InsideTest(V, F)(c).all()
+
+
+def test_balls_on_a_subset_of_the_surface_stay_on_the_axis():
+    # The centring's medial balls on a huge mesh shrink against a subsample of its vertices:
+    # a capsule's balls through every 4th vertex still have its radius and sit on its axis
+    # (within the subsample's sagitta, gap^2 / radius).
+    V, F = capsule(radius=1.0, length=6.0, n_around=64, n_body=60)
+    every = MedialBalls(V, F)
+    sub = np.arange(0, len(V), 4)
+    balls = MedialBalls(V, F, points=sub)
+    np.testing.assert_array_equal(balls.ids, sub)
+    np.testing.assert_array_equal(balls.pts, every.pts[sub])
+    c, r = balls.at(np.arange(len(sub)))
+    body = (balls.pts[:, 2] > 0.5) & (balls.pts[:, 2] < 5.5)
+    assert body.sum() > 100
+    np.testing.assert_allclose(r[body], 1.0, atol=1e-6)
+    np.testing.assert_allclose(c[body, :2], 0.0, atol=1e-6)
+    assert InsideTest(V, F)(c).all()
