@@ -181,6 +181,27 @@ def summary(results: list[dict]) -> str:
     return "\n".join(lines)
 
 
+SWEEP_HEADER = ("| setting | all targets met (of 10) | inside ≥ 0.98 | recon ≤ 1.25× | mean recon ×CGAL "
+                "| zig-zag ≤ 0.15 | folds 0 | length ok | to_ref ≤ 0.02 | median to_ref "
+                "| from_ref ≤ 0.025 |\n|---|---|---|---|---|---|---|---|---|---|---|")
+
+
+def sweep_row(setting: str, results: list[dict]) -> str:
+    """One markdown row of the deciding-parameter table in docs/benchmarks.md: how many meshes
+    meet each target, the mean recon ratio and the median to_ref."""
+    ok = [r for r in results if "error" not in r]
+    marks = [shape_marks(r) for r in ok]
+    met = {k: sum(m[k] for m in marks) for k in marks[0]} if marks else {}
+    ratios = [r["recon_ratio"] for r in ok if r["recon_ratio"] is not None]
+    cells = [setting, sum(all(m.values()) for m in marks), met.get("inside", 0),
+             met.get("recon", 0), f"{sum(ratios) / max(len(ratios), 1):.2f}", met.get("zigzag", 0),
+             met.get("folds", 0), met.get("length", 0), met.get("to_ref", 0),
+             f"{statistics.median(r['to_ref_mean'] for r in ok):.4f}" if ok else "–",
+             met.get("from_ref", 0)]
+    failed = len(results) - len(ok)
+    return "| " + " | ".join(str(c) for c in cells) + " |" + (f" ({failed} failed)" if failed else "")
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -195,39 +216,21 @@ def main(argv=None) -> None:
     ap.add_argument("--samples", type=int, default=5000, help="surface samples for recon")
     ap.add_argument("--json", metavar="OUT", help="also write the rows (and settings) as JSON")
     ap.add_argument("--save-dir", metavar="DIR", help="also save each skeleton as DIR/<mesh>.json")
+    ap.add_argument("--sweep", metavar="NAME=V1,V2,...",
+                    help="one summary row per value of one parameter (the other --set overrides "
+                         "apply to every row), as a markdown table for docs/benchmarks.md")
     args = ap.parse_args(argv)
+    if args.sweep:
+        return sweep(args)
 
     overrides = parse_sets(args.set, args.paper)
-    specs = ORDER
-    if args.meshes:
-        want = {m.rsplit(".", 1)[0] if "." in m and m.rsplit(".", 1)[1] in ("obj", "off", "ply", "stl")
-                else m for m in args.meshes}
-        specs = [s for s in ORDER if stem(s) in want]
-        unknown = want - {stem(s) for s in specs}
-        if unknown:
-            raise SystemExit(f"unknown mesh(es): {', '.join(sorted(unknown))}; known: "
-                             + ", ".join(stem(s) for s in REAL))
+    specs = _specs(args)
     label = ("reference curves" if args.ref_only else
              ("paper" if args.paper else "default") + (" " + " ".join(args.set) if args.set else ""))
     print(f"# shape_table: {label}; recon from {args.samples} samples; * = misses target", flush=True)
     print(header(), flush=True)
-    results = []
     t0 = time.perf_counter()
-    env = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-    for k, v in env.items():         # one BLAS thread per worker: the pool already fills the cores
-        os.environ.setdefault(k, v)
-    with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-        futs = {pool.submit(measure, s, overrides, args.paper, args.samples, args.ref_only,
-                            args.save_dir): s
-                for s in specs}
-        for f in as_completed(futs):
-            r = f.result()
-            results.append(r)
-            print(fmt_row(r), flush=True)
-            if "error" in r:
-                print(r["traceback"], file=sys.stderr)
-    order = {stem(s): i for i, s in enumerate(REAL)}
-    results.sort(key=lambda r: order.get(r["mesh"], 99))
+    results = run(specs, overrides, args, echo=True)
     print(summary(results))
     print(f"wall {time.perf_counter() - t0:.1f} s")
     if args.json:
@@ -236,6 +239,60 @@ def main(argv=None) -> None:
                                                "samples": args.samples, "targets": SHAPE_TARGETS,
                                                "results": results}, indent=1, default=str))
         print(f"wrote {args.json}")
+
+
+def _specs(args) -> list[str]:
+    if not args.meshes:
+        return ORDER
+    want = {m.rsplit(".", 1)[0] if "." in m and m.rsplit(".", 1)[1] in ("obj", "off", "ply", "stl")
+            else m for m in args.meshes}
+    specs = [s for s in ORDER if stem(s) in want]
+    unknown = want - {stem(s) for s in specs}
+    if unknown:
+        raise SystemExit(f"unknown mesh(es): {', '.join(sorted(unknown))}; known: "
+                         + ", ".join(stem(s) for s in REAL))
+    return specs
+
+
+def run(specs: list[str], overrides: dict, args, echo: bool = False) -> list[dict]:
+    """Measure the meshes in a process pool; rows in REAL's order."""
+    env = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    for k, v in env.items():         # one BLAS thread per worker: the pool already fills the cores
+        os.environ.setdefault(k, v)
+    results = []
+    with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+        futs = {pool.submit(measure, s, overrides, args.paper, args.samples, args.ref_only,
+                            args.save_dir): s
+                for s in specs}
+        for f in as_completed(futs):
+            r = f.result()
+            results.append(r)
+            if echo:
+                print(fmt_row(r), flush=True)
+            if "error" in r:
+                print(r["traceback"], file=sys.stderr)
+    order = {stem(s): i for i, s in enumerate(REAL)}
+    results.sort(key=lambda r: order.get(r["mesh"], 99))
+    return results
+
+
+def sweep(args) -> None:
+    """``--sweep NAME=V1,V2,...``: the deciding-parameter table, one row per value."""
+    if "=" not in args.sweep:
+        raise SystemExit(f"--sweep wants NAME=V1,V2,..., got {args.sweep!r}")
+    name, values = args.sweep.split("=", 1)
+    base = parse_sets(args.set, args.paper)
+    default = getattr(__import__("curveskel_addon.core", fromlist=["SkeletonParams"])
+                      .SkeletonParams(), name.strip().replace("-", "_"), None)
+    print(f"# sweep of {name} ({'paper' if args.paper else 'default'}"
+          + (" " + " ".join(args.set) if args.set else "") + f"; recon from {args.samples} samples)",
+          flush=True)
+    print(SWEEP_HEADER, flush=True)
+    for v in values.split(","):
+        over = base | parse_sets([f"{name}={v}"], args.paper)
+        value = next(iter(parse_sets([f"{name}={v}"], args.paper).values()))
+        label = f"{name} {v.strip()}" + (" (default)" if value == default else "")
+        print(sweep_row(label, run(_specs(args), over, args)), flush=True)
 
 
 if __name__ == "__main__":

@@ -358,6 +358,11 @@ def test_shape_table_parses_overrides_and_marks_targets():
     line = st.fmt_row(row)
     assert "0.20*" in line and line.count("*") == 1
     assert "zigzag 0" in st.summary([row]) and "all 0" in st.summary([row])
+    good = row | {"mesh": "spot", "zigzag": 0.1, "to_ref_mean": 0.02, "recon_ratio": 1.0}
+    sweep = st.sweep_row("smoothness 2", [row, good, {"mesh": "hand", "error": "boom"}])
+    #           all, inside, recon, mean ratio, zig-zag, folds, length, to_ref, median, from_ref
+    assert sweep == "| smoothness 2 | 1 | 2 | 2 | 0.93 | 1 | 2 | 2 | 2 | 0.0150 | 2 | (1 failed)"
+    assert sweep.count("|") == st.SWEEP_HEADER.split("\n")[0].count("|")
 
 
 def test_quality_reports_shape_measures():
