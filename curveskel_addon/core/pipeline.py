@@ -55,6 +55,9 @@ FIT_SMOOTHING = 0.3
 #: Joints that the fit of E (or the smoothing after it) moved into a fold go back to where the
 #: edit stage left them (see undo_new_folds).
 FOLD_GUARD = True
+#: ... and so do joints it moved into a crossing (two bones within 0.3 of their radius of each
+#: other, far apart along the skeleton: quality.crossing_pairs).
+CROSSING_GUARD = True
 
 
 class SkeletonRun:
@@ -340,12 +343,20 @@ def undo_new_folds(joints, bones, before, D, *, rounds: int = 3) -> np.ndarray:
     -------
     (J,) bool : the joints put back.
     """
-    from .quality import fold_pairs
+    from .quality import crossing_pairs, fold_pairs
 
-    old = {tuple(p) for p in fold_pairs(before, bones, D).tolist()}
+    def pairs(X):
+        # folds, and crossings measured with the edit stage's radii (the part's thickness)
+        Xr = np.column_stack([X[:, :3], before[:, 3]])
+        found = fold_pairs(X, bones, D).tolist()
+        if CROSSING_GUARD:
+            found += crossing_pairs(Xr, bones, D).tolist()
+        return found
+
+    old = {tuple(p) for p in pairs(before)}
     back = np.zeros(len(joints), bool)
     for _ in range(rounds):
-        new = [p for p in fold_pairs(joints, bones, D).tolist() if tuple(p) not in old]
+        new = [p for p in pairs(joints) if tuple(p) not in old]
         if not new:
             break
         j = np.unique(bones[np.unique(np.asarray(new).ravel())].ravel())

@@ -93,7 +93,7 @@ __all__ = ["quality", "sd_round_cone", "silhouette_sdf", "point_triangle_distanc
            "mesh_distance", "winding_number", "sample_surface", "sample_silhouette_boundary", "inside_mesh", "InsideTest",
            "bone_points", "closest_mapping", "energy_measures", "skeleton_topology",
            "mesh_topology", "bbox_diagonal", "curve_arrays", "segment_points", "curve_points",
-           "segment_segment_distance", "turn_angles", "close_bone_pairs", "fold_pairs",
+           "segment_segment_distance", "turn_angles", "close_bone_pairs", "fold_pairs", "crossing_pairs",
            "curve_measures", "curve_distances", "shape_measures"]
 
 #: Elements per temporary array in chunked pairwise evaluations (bounds memory to ~tens of MB).
@@ -1009,6 +1009,9 @@ ZIGZAG_DEGREES = 60.0
 #: skeleton.
 FOLD_NEAR = 0.01
 FOLD_FAR = 0.1
+#: A crossing: two bones within CROSS_WITHIN of the smaller radius of each other, more than
+#: FOLD_FAR * D apart along the skeleton (see crossing_pairs).
+CROSS_WITHIN = 0.3
 
 
 def bbox_diagonal(V, F=None) -> float:
@@ -1255,12 +1258,56 @@ def fold_pairs(X, bones, D, *, near=FOLD_NEAR, far=FOLD_FAR):
     (k, 2) int
         Bone index pairs (smaller first).
     """
-    from scipy.sparse import csr_matrix
-    from scipy.sparse.csgraph import dijkstra
-
     X = np.asarray(X, dtype=np.float64)[:, :3]
     bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
     pairs, _ = close_bone_pairs(X, bones, near * D)
+    return _far_along(X, bones, pairs, far * D, D)
+
+
+def crossing_pairs(joints, bones, D, *, within=CROSS_WITHIN, far=FOLD_FAR):
+    """Bone pairs that pass within ``within`` times the smaller of their radii of each other
+    but are ``> far * D`` apart along the skeleton: two bones in one part of the body (a
+    criss-cross in a plate, two loops' sides doubled between two holes) where a fold's
+    absolute 0.01 D misses them in a thick part. Pairs in different connected parts do not
+    count; a bone's radius is the smaller of its joints'.
+
+    Parameters
+    ----------
+    joints : (J, 4) float
+        Positions and radii.
+    bones : (B, 2) int
+    D : float
+        The normalising length of ``far`` (mesh bounding-box diagonal).
+
+    Returns
+    -------
+    (k, 2) int
+        Bone index pairs (smaller first).
+
+    Examples
+    --------
+    A chain that turns back and crosses its first bone 0.1 apart (radius 1):
+
+    >>> J = np.array([[0, 0, 0, 1], [4, 0, 0, 1], [4, 3, 0, 1], [2, 3, 0, 1], [2, -1, 0.1, 1]])
+    >>> crossing_pairs(J, np.array([[0, 1], [1, 2], [2, 3], [3, 4]]), 10.0).tolist()
+    [[0, 3]]
+    """
+    J = np.asarray(joints, dtype=np.float64).reshape(-1, 4)
+    bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
+    r = np.minimum(J[bones[:, 0], 3], J[bones[:, 1], 3]) if len(bones) else np.zeros(0)
+    if len(bones) < 2 or not np.any(r > 0):
+        return np.zeros((0, 2), np.int64)
+    pairs, d = close_bone_pairs(J[:, :3], bones, within * float(r.max()))
+    pairs = pairs[d < within * np.minimum(r[pairs[:, 0]], r[pairs[:, 1]])]
+    return _far_along(J[:, :3], bones, pairs, far * D, D)
+
+
+def _far_along(X, bones, pairs, far_abs, D):
+    """The ``pairs`` of bones (no shared joint) more than ``far_abs`` apart along the skeleton,
+    in one connected part of it."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import dijkstra
+
     if len(pairs) == 0:
         return pairs
     e1, e2 = bones[pairs[:, 0]], bones[pairs[:, 1]]
@@ -1281,7 +1328,7 @@ def fold_pairs(X, bones, D, *, near=FOLD_NEAR, far=FOLD_FAR):
         return pairs
     src, inv = np.unique(e1, return_inverse=True)
     inv = inv.reshape(-1, 2)
-    limit = far * D * (1 + 1e-9)
+    limit = far_abs * (1 + 1e-9)
     g = np.full(len(pairs), np.inf)
     step = max(1, _CHUNK // max(n, 1))
     for s0 in range(0, len(src), step):            # chunks of sources bound the dense rows
@@ -1291,7 +1338,7 @@ def fold_pairs(X, bones, D, *, near=FOLD_NEAR, far=FOLD_FAR):
             ok = (rows >= 0) & (rows < len(Dm))
             for b in (0, 1):
                 g[ok] = np.minimum(g[ok], Dm[rows[ok], e2[ok, b]])
-    return pairs[g > far * D]
+    return pairs[g > far_abs]
 
 
 def curve_measures(joints, bones=None, D=None, *, turn=ZIGZAG_DEGREES, near=FOLD_NEAR,
@@ -1322,6 +1369,9 @@ def curve_measures(joints, bones=None, D=None, *, turn=ZIGZAG_DEGREES, near=FOLD
             Number of :func:`fold_pairs` divided by the number of bones.
         fold_pairs
             That number.
+        crossings
+            Number of :func:`crossing_pairs` divided by the number of bones (None without
+            radii: joints given as (J, 3) or a reference curve).
         length
             Sum of bone lengths / D.
         bones, degree2, leaves
@@ -1334,6 +1384,7 @@ def curve_measures(joints, bones=None, D=None, *, turn=ZIGZAG_DEGREES, near=FOLD
     >>> m["zigzag"], m["folds"], m["length"]
     (0.0, 0.0, 1.0)
     """
+    src = getattr(joints, "joints", joints) if bones is None else joints
     if bones is None:
         X, bones = curve_arrays(joints)
     else:
@@ -1344,11 +1395,16 @@ def curve_measures(joints, bones=None, D=None, *, turn=ZIGZAG_DEGREES, near=FOLD
     L = float(np.linalg.norm(X[bones[:, 1]] - X[bones[:, 0]], axis=1).sum()) if len(bones) else 0.0
     folds = fold_pairs(X, bones, D, near=near, far=far) if D > 0 else np.zeros((0, 2), np.int64)
     deg = np.bincount(bones.ravel(), minlength=len(X))
+    # crossings need radii: only for joints given as (J, 4)
+    R = np.asarray(src) if isinstance(src, (np.ndarray, list)) else None
+    cross = (len(crossing_pairs(np.column_stack([X, R[:, 3]]), bones, D, far=far))
+             if R is not None and R.ndim == 2 and R.shape == (len(X), 4) and D > 0 else None)
     return {
         "zigzag": float((ang > turn).mean()) if len(ang) else 0.0,
         "turn_p90": float(np.percentile(ang, 90)) if len(ang) else 0.0,
         "folds": float(len(folds) / max(len(bones), 1)),
         "fold_pairs": int(len(folds)),
+        "crossings": float(cross / max(len(bones), 1)) if cross is not None else None,
         "length": L / D if D > 0 else float("nan"),
         "bones": int(len(bones)),
         "degree2": int((deg == 2).sum()),
@@ -1425,7 +1481,10 @@ def shape_measures(V, F, skeleton, reference=None, *, D=None) -> dict:
         raise CurveSkelError("the mesh has zero size")
     X, b = curve_arrays(skeleton)
     out = {"D": float(D)}
-    out.update(curve_measures(X, b, D))
+    # with its radii where it has them (for the crossings)
+    J = skeleton[0] if isinstance(skeleton, tuple) else getattr(skeleton, "joints", None)
+    J = None if J is None else np.asarray(J, dtype=np.float64)
+    out.update(curve_measures(J if J is not None and J.shape == (len(X), 4) else X, b, D))
     if reference is not None:
         Xr, br = curve_arrays(reference)
         out.update(curve_distances((X, b), (Xr, br), D))

@@ -182,3 +182,22 @@ def test_folds_that_were_there_before_the_fit_are_left_alone():
     after[-1, 2] += 0.001
     assert not undo_new_folds(after, bones, before, 1.5).any()
     assert after[-1, 2] == before[-1, 2] + 0.001
+
+
+def test_a_fit_that_lays_one_arm_across_the_other_in_a_thick_part_is_undone():
+    # Arms 1 apart with radius 0.4 (a plate): the fit moves the right arm's tip to 0.05 of the
+    # left arm - no fold at 0.01 D, but two bones in one part (a crossing), put back.
+    from curveskel_addon.core.pipeline import undo_new_folds
+    from curveskel_addon.core.quality import crossing_pairs, fold_pairs
+
+    before, bones = _u_chain()
+    before[:, 3] = 0.4
+    D = 1.5
+    after = before.copy()
+    after[-1, :3] = [0.05, 0.9, 0.0]
+    assert len(fold_pairs(after, bones, D)) == 0
+    assert len(crossing_pairs(after, bones, D)) > 0 == len(crossing_pairs(before, bones, D))
+    back = undo_new_folds(after, bones, before, D)
+    assert back[-1] and not back[4]
+    assert len(crossing_pairs(after, bones, D)) == 0
+    np.testing.assert_array_equal(after, before)

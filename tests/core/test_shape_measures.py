@@ -375,3 +375,19 @@ def test_quality_reports_shape_measures():
     assert q["zigzag"] == 0 and q["folds"] == 0 and "to_ref_mean" not in q
     q = quality(V, F, sk, n_samples=500, reference=chain(line([0, 0, 0], [0, 0, 6], 6)))
     assert q["length_ratio"] == pytest.approx(1.0) and q["to_ref_mean"] <= 1 / 4000
+
+
+def test_crossings_count_bones_within_their_radius_far_along_the_skeleton():
+    from curveskel_addon.core.quality import crossing_pairs, curve_measures
+
+    # a chain turns back over its first bone, 0.075 above it where they cross
+    J = np.array([[0, 0, 0, 1], [4, 0, 0, 1], [4, 3, 0, 1], [2, 3, 0, 1], [2, -1, 0.1, 1.0]])
+    B = np.array([[0, 1], [1, 2], [2, 3], [3, 4]])
+    assert crossing_pairs(J, B, 10.0).tolist() == [[0, 3]]
+    assert curve_measures(J, B, D=10.0)["crossings"] == 0.25
+    # thinner bones: 0.075 is more than 0.3 of their radius 0.2
+    assert len(crossing_pairs(J * [1, 1, 1, 0.2], B, 10.0)) == 0
+    # near along the skeleton (a short loop): not a crossing
+    assert len(crossing_pairs(J, B, 200.0)) == 0
+    # no radii, no crossings measure
+    assert curve_measures(J[:, :3], B, D=10.0)["crossings"] is None
