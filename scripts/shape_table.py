@@ -281,21 +281,22 @@ def run(specs: list[str], overrides: dict, args, echo: bool = False) -> list[dic
 
 def sweep(args) -> None:
     """``--sweep NAME=V1,V2,...``: the deciding-parameter table, one row per value."""
+    from curveskel_addon.core import SkeletonParams
+
     if "=" not in args.sweep:
         raise SystemExit(f"--sweep wants NAME=V1,V2,..., got {args.sweep!r}")
     name, values = args.sweep.split("=", 1)
     base = parse_sets(args.set, args.paper)
-    default = getattr(__import__("curveskel_addon.core", fromlist=["SkeletonParams"])
-                      .SkeletonParams(), name.strip().replace("-", "_"), None)
+    defaults = SkeletonParams.paper() if args.paper else SkeletonParams()
     print(f"# sweep of {name} ({'paper' if args.paper else 'default'}"
           + (" " + " ".join(args.set) if args.set else "") + f"; recon from {args.samples} samples)",
           flush=True)
     print(SWEEP_HEADER, flush=True)
     for v in values.split(","):
-        over = base | parse_sets([f"{name}={v}"], args.paper)
-        value = next(iter(parse_sets([f"{name}={v}"], args.paper).values()))
-        label = f"{name} {v.strip()}" + (" (default)" if value == default else "")
-        print(sweep_row(label, run(_specs(args), over, args)), flush=True)
+        one = parse_sets([f"{name}={v}"], args.paper)
+        (field, value), = one.items()
+        label = f"{name} {v.strip()}" + (" (default)" if value == getattr(defaults, field) else "")
+        print(sweep_row(label, run(_specs(args), base | one, args)), flush=True)
 
 
 if __name__ == "__main__":

@@ -286,35 +286,33 @@ def _signed_depth(tree, inside, V=None, F=None, k: int = 8, ids=None):
     whether the ray-parity test calls it inside or outside (a matter of the last bits there)
     cannot change a decision that compares depths (the octopus scaled by 1e6: 0.011 D).
     ``ids``: the vertex of each point of ``tree``, if it holds a subset of the vertices."""
+    from .quality import point_triangle_distance
+
+    faces_of = []           # the faces around each vertex (CSR by vertex), built on first use
+
+    def around(v):
+        """(point, face) pairs: every face holding one of the vertices ``v`` (p, k)."""
+        if not faces_of:
+            corner = np.argsort(F.ravel(), kind="stable")
+            starts = np.searchsorted(F.ravel()[corner], np.arange(len(V) + 1))
+            faces_of.extend([corner // 3, starts])
+        face, starts = faces_of
+        lo, cnt = starts[v.ravel()], np.diff(starts)[v.ravel()]
+        pi = np.repeat(np.repeat(np.arange(len(v)), v.shape[1]), cnt)
+        fi = face[np.repeat(lo, cnt) + np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)]
+        return pi, fi
+
     def depth(P):
         P = np.asarray(P, np.float64).reshape(-1, 3)
         d, nn = tree.query(P, k=min(k, tree.n))
         d, nn = d.reshape(len(P), -1), nn.reshape(len(P), -1)
-        if ids is not None:
-            nn = ids[nn]
+        d = d[:, 0]
         if F is not None and len(P):
-            d0 = d[:, 0].copy()
-            verts = np.unique(nn)
-            hit = np.isin(F, verts).any(axis=1)
-            Fs = F[hit]
-            # point i x face f where f holds one of i's nearest vertices
-            owner = np.repeat(np.arange(len(Fs)), 3)
-            vv = Fs.ravel()
-            o = np.argsort(vv, kind="stable")
-            vv, owner = vv[o], owner[o]
-            lo = np.searchsorted(vv, nn.ravel(), "left")
-            hi = np.searchsorted(vv, nn.ravel(), "right")
-            cnt = hi - lo
-            pi = np.repeat(np.repeat(np.arange(len(P)), nn.shape[1]), cnt)
-            fi = owner[np.repeat(lo, cnt) + np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)]
-            from .quality import point_triangle_distance
-            T = V[Fs[fi]]
-            dt = point_triangle_distance(P[pi], T[:, 0], T[:, 1], T[:, 2])
+            pi, fi = around(nn if ids is None else ids[nn])
+            T = V[F[fi]]
             best = np.full(len(P), np.inf)
-            np.minimum.at(best, pi, dt)
-            d = np.minimum(best, d0)
-        else:
-            d = d[:, 0]
+            np.minimum.at(best, pi, point_triangle_distance(P[pi], T[:, 0], T[:, 1], T[:, 2]))
+            d = np.minimum(best, d)
         return np.where(inside(P), d, -d)
     return depth
 
@@ -335,16 +333,17 @@ def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0, key=None, weig
     from .state import canonical_sample, canonical_subset
     from .vertex_area import vertex_areas
     n = len(V)
+    subsample = n > MEDIAL_TREE_POINTS             # the balls' points too (see below)
     key = np.arange(n) if key is None else key
-    order = np.argsort(key, kind="stable")
-    a = vertex_areas(V, F) if weights is None and n > min(k, MEDIAL_TREE_POINTS) else weights
+    order = np.argsort(key, kind="stable") if n > k or subsample else None
+    a = vertex_areas(V, F) if weights is None and order is not None else weights
     idx = np.arange(n) if n <= k else canonical_sample(key, k, seed, p=a, order=order)
     X = np.asarray(fa_joints)[:, :3]
     i, j = fa_bones[bone[idx], 0], fa_bones[bone[idx], 1]
     sig = t[idx, None] * X[i] + (1.0 - t[idx, None]) * X[j]
     d = np.linalg.norm(V[idx] - sig, axis=1)
     points = None
-    if n > MEDIAL_TREE_POINTS:
+    if subsample:
         # The balls shrink against an area-weighted subsample of the surface (the samples
         # included): on a huge mesh the k-NN queries of balls centred on an axis visit the
         # whole ring of vertices around it, and vertices this dense add nothing measurable

@@ -702,29 +702,26 @@ class InsideTest:
     def __init__(self, V, F, *, seed=0, n_rays=3):
         self._V = np.asarray(V, dtype=np.float64)
         self._F = np.asarray(F, dtype=np.int64)
+        self.n_rays = n_rays
         rng = np.random.default_rng(seed)
         self._rotations = []
-        for _ in range(n_rays):
+        for _ in range((n_rays + 1) // 2):             # two rays (both ways) per line
             Q, Rm = np.linalg.qr(rng.normal(size=(3, 3)))
             self._rotations.append(Q * np.sign(np.diag(Rm)))
-        self._grids: list = [None] * n_rays
+        self._grids: list = [None] * len(self._rotations)
 
     def _grid(self, k):
-        # Built on first use: once a majority agrees the other directions are not needed
-        # (on a closed mesh the first two rays nearly always agree; a grid costs O(faces)).
+        # Built on first use: once a majority agrees the other lines are not needed (on a
+        # closed mesh the two ways along the first line nearly always agree; a grid costs
+        # O(faces)).
         if self._grids[k] is None:
             self._grids[k] = _RayGrid(self._V, self._F, self._rotations[k])
         return self._grids[k]
 
-    @property
-    def grids(self):
-        """Every direction's grid (all built)."""
-        return [self._grid(k) for k in range(len(self._grids))]
-
     def __call__(self, P):
         """(n,) bool: whether each point of ``P`` (n, 3) is inside."""
         P = np.asarray(P, dtype=np.float64).reshape(-1, 3)
-        n = len(self._grids)
+        n = self.n_rays
         need = n // 2 + 1                               # votes that decide
         votes = np.zeros(len(P), np.int64)
         open_ = np.arange(len(P))
@@ -1384,7 +1381,7 @@ def curve_measures(joints, bones=None, D=None, *, turn=ZIGZAG_DEGREES, near=FOLD
     >>> m["zigzag"], m["folds"], m["length"]
     (0.0, 0.0, 1.0)
     """
-    src = getattr(joints, "joints", joints) if bones is None else joints
+    r = _radii_of(joints)
     if bones is None:
         X, bones = curve_arrays(joints)
     else:
@@ -1395,10 +1392,8 @@ def curve_measures(joints, bones=None, D=None, *, turn=ZIGZAG_DEGREES, near=FOLD
     L = float(np.linalg.norm(X[bones[:, 1]] - X[bones[:, 0]], axis=1).sum()) if len(bones) else 0.0
     folds = fold_pairs(X, bones, D, near=near, far=far) if D > 0 else np.zeros((0, 2), np.int64)
     deg = np.bincount(bones.ravel(), minlength=len(X))
-    # crossings need radii: only for joints given as (J, 4)
-    R = np.asarray(src) if isinstance(src, (np.ndarray, list)) else None
-    cross = (len(crossing_pairs(np.column_stack([X, R[:, 3]]), bones, D, far=far))
-             if R is not None and R.ndim == 2 and R.shape == (len(X), 4) and D > 0 else None)
+    cross = (len(crossing_pairs(np.column_stack([X, r]), bones, D, far=far))
+             if r is not None and len(r) == len(X) and D > 0 else None)
     return {
         "zigzag": float((ang > turn).mean()) if len(ang) else 0.0,
         "turn_p90": float(np.percentile(ang, 90)) if len(ang) else 0.0,
@@ -1410,6 +1405,16 @@ def curve_measures(joints, bones=None, D=None, *, turn=ZIGZAG_DEGREES, near=FOLD
         "degree2": int((deg == 2).sum()),
         "leaves": int((deg == 1).sum()),
     }
+
+
+def _radii_of(skeleton):
+    """The joint radii of a skeleton given as (J, 4) joints, a (joints, bones) tuple or an object
+    with ``.joints`` (J, 4); None for anything else (a curve without radii, a file)."""
+    J = skeleton[0] if isinstance(skeleton, tuple) else getattr(skeleton, "joints", skeleton)
+    if not isinstance(J, (np.ndarray, list)):
+        return None
+    J = np.asarray(J, dtype=np.float64)
+    return J[:, 3] if J.ndim == 2 and J.shape[1] == 4 else None
 
 
 def curve_distances(ours, reference, D, *, coarse=SHAPE_COARSE_STEP, fine=SHAPE_FINE_STEP) -> dict:
@@ -1481,10 +1486,9 @@ def shape_measures(V, F, skeleton, reference=None, *, D=None) -> dict:
         raise CurveSkelError("the mesh has zero size")
     X, b = curve_arrays(skeleton)
     out = {"D": float(D)}
-    # with its radii where it has them (for the crossings)
-    J = skeleton[0] if isinstance(skeleton, tuple) else getattr(skeleton, "joints", None)
-    J = None if J is None else np.asarray(J, dtype=np.float64)
-    out.update(curve_measures(J if J is not None and J.shape == (len(X), 4) else X, b, D))
+    r = _radii_of(skeleton)                    # kept for the crossings where it has them
+    out.update(curve_measures(X if r is None or len(r) != len(X) else np.column_stack([X, r]),
+                              b, D))
     if reference is not None:
         Xr, br = curve_arrays(reference)
         out.update(curve_distances((X, b), (Xr, br), D))

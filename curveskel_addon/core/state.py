@@ -20,7 +20,7 @@ from .energy import energy
 from .mapping import closest_on_bones
 from .problem import FitProblem
 
-__all__ = ["PipelineState", "candidates_from_pairs", "canonical_sample"]
+__all__ = ["PipelineState", "candidates_from_pairs", "canonical_sample", "canonical_subset"]
 
 
 def canonical_sample(key, k, seed=0, p=None, order=None):
