@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from curveskel_addon.core.edit import (chain_turns, chains, collapse_short_bones, merge_chains,
-                                       prune_leaves, remove_sharp_turns)
+                                       prune_leaves, remove_sharp_turns, zip_parallel_chains)
+from curveskel_addon.core.quality import crossing_pairs
 
 
 def _joints(points, r=0.5):
@@ -245,3 +246,94 @@ def test_collapse_short_bones_keeps_a_junction_in_place_and_a_cycle_a_cycle():
     J, B, m = collapse_short_bones(X, sq, np.full(5, 0.01))
     np.testing.assert_array_equal(J, X)
     assert m.tolist() == list(range(5))
+
+
+# -- zip_parallel_chains ----------------------------------------------------------------------------
+
+def _fork(gap, r=1.0):
+    """A stem s -> (-3, 0) and two chains from s = (0, 0) running side by side ``gap`` apart
+    (y = +-gap/2) to x = 3, then parting to (4, +-2)."""
+    h = gap / 2
+    pts = [(0, 0), (-3, 0),
+           (1, h), (2, h), (3, h), (4, 2),
+           (1, -h), (2, -h), (3, -h), (4, -2)]
+    bones = [(0, 1), (0, 2), (2, 3), (3, 4), (4, 5), (0, 6), (6, 7), (7, 8), (8, 9)]
+    return _joints(pts, r), np.array(bones)
+
+
+def test_zip_merges_two_chains_side_by_side_into_one_that_forks_where_they_part():
+    J, B = _fork(0.4)                        # 0.4 apart, radius 1: one part's curve twice
+    J2, B2, m = zip_parallel_chains(J, B, 0.5)
+    deg = np.bincount(B2.ravel(), minlength=len(J2))
+    # one junction where the stem meets, one where the two ends part: a single chain between
+    fork = np.flatnonzero(deg == 3)
+    assert len(fork) == 1
+    assert np.allclose(J2[fork[0], :3], [3, 0, 0])
+    assert _cycles(len(J2), B2) == 0 and len(np.flatnonzero(deg == 1)) == 3
+    # the merged chain runs on the mean curve y = 0 from (0, 0) to (3, 0)
+    inner = np.flatnonzero((deg == 2) & (J2[:, 0] < 3))
+    assert len(inner) >= 2 and np.allclose(J2[inner, 1], 0.0)
+    length = np.linalg.norm(J2[B2[:, 0], :3] - J2[B2[:, 1], :3], axis=1).sum()
+    assert length == pytest.approx(3 + 3 + 2 * np.hypot(1, 2))
+    assert len(crossing_pairs(J2, B2, 10.0, far=0.01)) == 0
+    # every old bone has a new one; the zipped bones go to bones of the merged chain (y = 0)
+    assert m.shape == (len(B),) and m.min() >= 0 and m.max() < len(B2)
+    for b in (1, 2, 3, 5, 6, 7):
+        assert np.allclose(J2[B2[m[b]], 1], 0.0)
+    assert np.allclose(J2[B2[m[0]], 0].min(), -3)          # the stem stays the stem
+
+
+def test_zip_leaves_chains_farther_apart_than_half_their_radius():
+    J, B = _fork(1.4)                        # two fingers: 1.4 apart with radius 1
+    J2, B2, m = zip_parallel_chains(J, B, 0.5)
+    assert np.array_equal(J2, J) and np.array_equal(B2, B) and np.array_equal(m, np.arange(len(B)))
+
+
+def test_zip_never_closes_a_hole():
+    # two paths between the same two junctions 0.4 apart (radius 1): a loop round a thin hole;
+    # zipping them would remove the cycle, so nothing changes
+    pts = [(-2, 0), (0, 0), (1, 0.2), (2, 0.2), (3, 0), (1, -0.2), (2, -0.2), (5, 0)]
+    B = np.array([(0, 1), (1, 2), (2, 3), (3, 4), (1, 5), (5, 6), (6, 4), (4, 7)])
+    J = _joints(pts, 1.0)
+    J2, B2, _ = zip_parallel_chains(J, B, 0.5)
+    assert _cycles(len(J2), B2) == 1
+    assert np.array_equal(J2, J) and np.array_equal(B2, B)
+
+
+def test_zip_ignores_bones_within_the_junction_ball():
+    # three short bones at a right angle inside the junction's ball (radius 1): close, but not
+    # side by side beyond the ball
+    pts = [(0, 0), (0.4, 0), (0, 0.4), (-3, 0)]
+    B = np.array([(0, 1), (0, 2), (0, 3)])
+    J = _joints(pts, 1.0)
+    J2, B2, _ = zip_parallel_chains(J, B, 0.5)
+    assert np.array_equal(B2, B)
+
+
+def test_zip_joins_two_junctions_of_one_part_into_a_shared_segment():
+    # the plate between two holes: the left loop's side and the right loop's side run up and
+    # down side by side from two junctions joined by a short bridge; zipped they share one
+    # vertical segment with a junction at each end (three junctions -> theta-like joins)
+    pts = [(-0.2, 0), (0.2, 0),                        # bridge ends (junctions)
+           (-0.2, 1), (-0.2, 2), (-2, 3),              # left loop up
+           (0.2, 1), (0.2, 2), (2, 3),                 # right loop up
+           (-0.2, -1), (-0.2, -2), (-2, -3),           # left loop down
+           (0.2, -1), (0.2, -2), (2, -3),              # right loop down
+           (-4, 0), (4, 0),                            # the far sides of the two loops
+           (-6, 0), (6, 0)]                            # with a tail each (plate's ends)
+    B = np.array([(0, 1), (0, 2), (2, 3), (3, 4), (1, 5), (5, 6), (6, 7),
+                  (0, 8), (8, 9), (9, 10), (1, 11), (11, 12), (12, 13),
+                  (4, 14), (14, 10), (7, 15), (15, 13), (14, 16), (15, 17)])
+    J = _joints(pts, 1.0)
+    assert _cycles(len(J), B) == 2
+    J2, B2, m = zip_parallel_chains(J, B, 0.5)
+    assert _cycles(len(J2), B2) == 2
+    assert len(crossing_pairs(J2, B2, 10.0)) == 0
+    # the shared segment lies on x = 0 from y = -2 to 2; the junctions at its ends
+    deg = np.bincount(B2.ravel(), minlength=len(J2))
+    junctions = J2[(deg == 3) & (np.abs(J2[:, 0]) < 3), :3]       # (the tails' are at x = +-4)
+    assert len(junctions) == 2 and (deg == 3).sum() == 4
+    assert np.allclose(np.sort(junctions[:, 1]), [-2, 2]) and np.allclose(junctions[:, 0], 0)
+    # and the segment between them is one chain on x = 0
+    between = (deg == 2) & (np.abs(J2[:, 1]) < 2)
+    assert np.abs(J2[between, 0]).max() < 0.1

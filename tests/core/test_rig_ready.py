@@ -390,3 +390,18 @@ def test_paper_params_stay_the_paper(name):
     assert "edit" not in sk.meta
     # the fit starts from the first approximation itself: no edit changed its joints
     assert sk.meta["stages"][0]["joints"] == len(sk.joints)
+
+
+@pytest.mark.parametrize("name", ["3holes.off", "elephant.obj"])
+def test_no_part_holds_two_bones_side_by_side(shared_meshes, name):
+    """Where two paths ran side by side through one part (3holes' loops between two holes:
+    3 crossing pairs; elephant's front legs at the body: 1), the default skeleton draws the
+    part once."""
+    from curveskel_addon.core.mesh_io import read_mesh
+    from curveskel_addon.core.quality import crossing_pairs
+    V, F = read_mesh(shared_meshes / name)
+    sk = skeletonize(V, F, SkeletonParams())
+    D = bbox_diagonal(V, F)
+    assert len(crossing_pairs(sk.joints, sk.bones, D)) == 0
+    m = curve_measures(sk.joints, sk.bones, D)
+    assert m["folds"] == 0 and m["zigzag"] <= 0.15
