@@ -629,15 +629,8 @@ def _arc(X):
 
 
 def _cycles(n_joints, bones):
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    used = np.zeros(n_joints, bool)
-    used[bones.ravel()] = True
-    if not len(bones):
-        return 0
-    g = coo_matrix((np.ones(len(bones)), (bones[:, 0], bones[:, 1])), shape=(n_joints,) * 2)
-    n_comp = connected_components(g, directed=False)[0] - int((~used).sum())
-    return len(bones) - int(used.sum()) + n_comp
+    from .quality import skeleton_topology
+    return skeleton_topology(n_joints, bones)["skeleton_cycles"]
 
 
 def _zip_pairs(joints, bones):
