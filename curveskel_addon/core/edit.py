@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .quality import _point_segment_distance, skeleton_topology
+
 __all__ = ["chains", "merge_chains", "zip_parallel_chains", "collapse_short_bones", "prune_leaves", "compact", "chain_turns", "remove_sharp_turns", "edit_stage", "contain_stage",
            "EDIT_CONSTANTS"]
 
@@ -617,11 +619,10 @@ def _to_polyline(P, Q):
     """Distance of each point of P (k, 3) to the polyline Q (m, 3)."""
     if len(Q) == 1:
         return np.linalg.norm(P - Q[0], axis=1)
-    s, d = Q[:-1], np.diff(Q, axis=0)
-    dd = np.einsum("ij,ij->i", d, d)
-    u = np.einsum("kmj,mj->km", P[:, None, :] - s[None], d) / np.where(dd > 0, dd, 1.0)
-    u = np.clip(u, 0.0, 1.0)
-    return np.linalg.norm(P[:, None, :] - (s[None] + u[..., None] * d[None]), axis=2).min(axis=1)
+    k, m = len(P), len(Q) - 1
+    d = _point_segment_distance(np.repeat(P, m, axis=0), np.tile(Q[:-1], (k, 1)),
+                                np.tile(Q[1:], (k, 1)))
+    return d.reshape(k, m).min(axis=1)
 
 
 def _arc(X):
@@ -629,7 +630,6 @@ def _arc(X):
 
 
 def _cycles(n_joints, bones):
-    from .quality import skeleton_topology
     return skeleton_topology(n_joints, bones)["skeleton_cycles"]
 
 
@@ -759,12 +759,12 @@ def _zip(joints, bones, P, Pb, Q, Qb):
     pos[first] = np.arange(len(first))
     bone_map = np.full(len(bones), -1, np.int64)
     bone_map[np.flatnonzero(keep)] = pos[:keep.sum()]
-    # the two paths' bones (and duplicates) go to the nearest bone of the new chain
+    # the two paths' bones (and duplicates) go to the nearest bone of the new chain (its bones
+    # all join a new joint, so none is a duplicate)
     add_ids = pos[keep.sum():]
     mids = 0.5 * (new[add[:, 0], :3] + new[add[:, 1], :3])
     for b in np.flatnonzero(bone_map < 0):
         c = 0.5 * (joints[bones[b, 0], :3] + joints[bones[b, 1], :3])
-        k = int(np.argmin(np.linalg.norm(mids - c, axis=1)))
-        bone_map[b] = add_ids[k] if add_ids[k] >= 0 else 0
+        bone_map[b] = add_ids[int(np.argmin(np.linalg.norm(mids - c, axis=1)))]
     j2, b2, _ = compact(new, allb, None)
     return j2, b2, bone_map
