@@ -43,6 +43,9 @@ MAX_INFLUENCES = 4
 #: Most smoothing steps of :func:`bone_weights` (the joints are already blended; the steps only
 #: soften the seams between bone regions, and each costs a sparse product).
 SMOOTH_CAP = 12
+#: Largest (closed 1-ring entries x bones) smoothed on a dense array (about 0.3 ns each per step
+#: here; the sparse product wins beyond, e.g. on a 43k-vertex mesh with 71 bones).
+DENSE_SMOOTH_WORK = 16_000_000
 
 
 def smoothstep(x):
@@ -144,7 +147,8 @@ def smooth_weights(index, weight, edges, *, iterations: int = 10,
     max_influences : int
         Columns of the result; the smallest weights beyond it are dropped.
     prune : float
-        Weights below this are dropped during the steps (keeps the matrices sparse).
+        Weights below this are dropped: after each step on large meshes (keeps the sparse
+        matrices sparse), after the last one where the weights fit a dense array.
 
     Returns
     -------
@@ -170,6 +174,9 @@ def _smooth(index, weight, graph, iterations, max_influences, prune):
     nb = int(index.max()) + 1 if index.size else 0
     ok = index >= 0
     rows = np.broadcast_to(np.arange(n)[:, None], index.shape)
+    if iterations > 0 and graph is not None and nb and len(graph.indices) * nb <= DENSE_SMOOTH_WORK:
+        return _smooth_dense(rows[ok], index[ok], weight[ok], n, nb, graph, iterations,
+                             max_influences, prune)
     W = sp.csr_matrix((weight[ok], (rows[ok], index[ok])), shape=(n, max(nb, 1)))
     if iterations > 0 and graph is not None:
         S = graph.averaging()
@@ -179,6 +186,33 @@ def _smooth(index, weight, graph, iterations, max_influences, prune):
             W.data[W.data < prune] = 0.0
         W.eliminate_zeros()
     return _largest(W, max_influences)
+
+
+def _smooth_dense(rows, cols, vals, n, nb, graph, iterations, max_influences, prune):
+    """The diffusion of :func:`_smooth` on a dense (n, bones) float32 array: on small and
+    middle-sized meshes a sparse-times-dense product per step costs 2-4x less than the sparse
+    product (whose per-step bookkeeping dominates there). Weights below ``prune`` are dropped
+    after the last step (not after each), the 4 largest kept as in :func:`_largest`."""
+    S = graph.averaging()
+    S = sp.csr_matrix((S.data.astype(np.float32), S.indices, S.indptr), shape=S.shape)
+    Wd = np.bincount(rows * nb + cols, weights=vals, minlength=n * nb).astype(np.float32)
+    Wd = Wd.reshape(n, nb)
+    for _ in range(int(iterations)):
+        Wd = S @ Wd
+    Wd[Wd < prune] = 0.0
+    out_i = np.full((n, max_influences), -1, np.int64)
+    out_w = np.zeros((n, max_influences))
+    rank = np.arange(n)
+    for j in range(min(max_influences, nb)):
+        best = np.argmax(Wd, axis=1)             # the first of equal values: the lower column
+        v = Wd[rank, best]
+        has = v > 0
+        out_i[has, j] = best[has]
+        out_w[has, j] = v[has]
+        Wd[rank, best] = 0.0
+    total = out_w.sum(axis=1, keepdims=True)
+    out_w = np.divide(out_w, total, out=np.zeros_like(out_w), where=total > 0)
+    return out_i, out_w
 
 
 def _largest(W, max_influences):

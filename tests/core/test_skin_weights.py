@@ -145,6 +145,29 @@ def test_smooth_weights_closes_seams_and_keeps_sums():
     assert np.array_equal(i0, idx) and np.array_equal(w0, w)
 
 
+@pytest.mark.parametrize("iterations", [1, 6])
+def test_smooth_weights_dense_and_sparse_diffusion_agree(monkeypatch, iterations):
+    # the same diffusion on a dense float32 array (small meshes) and on sparse matrices (large
+    # ones): a capsule with 8 bones along it, two influences per vertex near the joints
+    import curveskel_addon.core.skin_weights as sw
+    V, F = meshes.capsule()
+    z = (V[:, 2] - V[:, 2].min()) / np.ptp(V[:, 2]) * 8
+    b = np.minimum(z.astype(int), 7)
+    frac = z - b
+    idx = np.full((len(V), 4), -1)
+    w = np.zeros((len(V), 4))
+    idx[:, 0], w[:, 0] = b, 1.0 - 0.5 * frac
+    idx[:, 1], w[:, 1] = np.minimum(b + 1, 7), 0.5 * frac
+    idx[b == 7, 1], w[b == 7, 0], w[b == 7, 1] = -1, 1.0, 0.0
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    i_d, w_d = smooth_weights(idx, w, E, iterations=iterations)
+    monkeypatch.setattr(sw, "DENSE_SMOOTH_WORK", 0)
+    i_s, w_s = smooth_weights(idx, w, E, iterations=iterations)
+    check_weights(i_d, w_d, len(V))
+    assert np.abs(dense(i_d, w_d, 8) - dense(i_s, w_s, 8)).max() < 5e-4
+    assert np.array_equal(i_d[:, 0], i_s[:, 0])           # the same main bone everywhere
+
+
 def test_smooth_weights_keeps_four_largest():
     # a star graph: centre vertex 0 joined to 6 vertices each on its own bone
     idx = np.full((7, 4), -1)
