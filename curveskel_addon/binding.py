@@ -173,7 +173,7 @@ def write_weights(mesh_obj, group_names, index, weight) -> None:
                                          weight[two, 1].tolist()):
                 d[g0] = w0
                 d[g1] = w1
-        other = ~np.isin(np.arange(n), np.concatenate([one, two])) & (count > 0)
+        other = (count > 0) & ~(prefix & (count <= 2))
         for c in range(k):
             rows = np.flatnonzero(other & valid[:, c])
             for d, g, w in zip([deform[r] for r in rows.tolist()], gidx[rows, c].tolist(),

@@ -645,7 +645,8 @@ def bone_weights(V, F, heads, tails, parent, deform=None, *, blend: float = 0.25
     index[has, 1], weight[has, 1] = partner[has], share[has]
     k = 0
     if smooth > 0 and len(E) and n:
-        h = float(np.mean(np.linalg.norm(P[E[:, 0]] - P[E[:, 1]], axis=1)))
+        dE = P[E[:, 0]] - P[E[:, 1]]
+        h = float(np.mean(np.sqrt(np.einsum("ij,ij->i", dE, dE))))      # mean edge length
         k = smoothing_iterations(smooth * float(np.median(dist)), h, cap=SMOOTH_CAP)
     index, weight = _smooth(index, weight, graph, k, max_influences, 1e-4)
     # keep the main bone's family only (itself, its parent, its children)
