@@ -27,6 +27,8 @@ __all__ = ["surface_points", "MedialBalls"]
 
 #: Separation angle (degrees) below which a shrink is taken for noise (see MedialBalls).
 MIN_ANGLE = 30.0
+#: A ball whose radius a shrink changes by less than this fraction stops shrinking.
+SETTLE = 1e-4
 
 
 def surface_points(V, F):
@@ -203,8 +205,12 @@ class MedialBalls:
             # other side of the part: shrinking to it gives a ball far too small. Stop instead.
             cos_sep = 1.0 - dd / (2.0 * np.maximum(new_rho, 1e-300) ** 2)
             shrink &= cos_sep < self.cos_min
+            # a shrink by less than SETTLE of the radius settles the ball: the next query, from a
+            # centre nearly equidistant from a whole band of the surface, is the costly one and
+            # would move it by about as little again
+            settle = new_rho >= rho[ids] * (1.0 - SETTLE)
             rho[ids] = np.minimum(new_rho, rho[ids])
-            live[ids[~shrink]] = False
+            live[ids[~shrink | settle]] = False
         return q - rho[:, None] * n, rho
 
     def at_nearest(self, X):
