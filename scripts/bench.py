@@ -48,6 +48,7 @@ PROCEDURAL = {
     "torus-100k": ("torus", dict(n_major=400, n_minor=250)),
     "capsule-1M": ("capsule", dict(n_around=1024, n_body=970, cap_rings=8)),
     "torus-1M": ("torus", dict(n_major=2000, n_minor=500)),
+    "star-87k": ("star", dict(n_around=128, rings=180)),
 }
 #: CGAL (mean curvature flow skeleton) reference figures: recon_mean, inside, joints.
 CGAL = {
@@ -942,9 +943,61 @@ def plot_skeletons(specs, method: str = "curveskel") -> str | None:
     return str(path.relative_to(ROOT))
 
 
+# -- the whole command against skeletor's (issue 11) ------------------------------------------------
+SKELETOR_COMMAND = """
+import sys, trimesh, skeletor
+m = trimesh.load(sys.argv[1], process=False, force="mesh")
+fixed = skeletor.pre.fix_mesh(m, remove_disconnected=5, inplace=False)
+s = skeletor.skeletonize.by_wavefront(fixed, waves=1, step_size=1, progress=False)
+print(len(s.vertices))
+"""
+
+
+def run_command(args) -> None:
+    """Whole command on a ~90k-vertex OBJ (the 87k-vertex star, four capsules united), each in
+    its own process with reading and imports included: ``scripts/skeletonize.py STAR.obj --json
+    OUT`` against skeletor's ``fix_mesh`` + ``by_wavefront(waves=1, step_size=1)`` of the same
+    file. The two take turns ``--repeat`` times; medians are reported."""
+    import subprocess
+    import tempfile
+
+    import numpy as np
+
+    V, F, _ = load_mesh("star-87k")
+    with tempfile.TemporaryDirectory() as tmp:
+        obj = Path(tmp) / "star87k.obj"
+        with open(obj, "w") as fh:
+            np.savetxt(fh, V, fmt="v %.9g %.9g %.9g")
+            np.savetxt(fh, F + 1, fmt="f %d %d %d")
+        commands = {
+            "curveskel": [sys.executable, str(ROOT / "scripts" / "skeletonize.py"), str(obj),
+                          "--json", str(Path(tmp) / "out.json")],
+            "skeletor-wavefront": [sys.executable, "-c", SKELETOR_COMMAND, str(obj)],
+        }
+        seconds = {k: [] for k in commands}
+        for _ in range(max(args.repeat, 1)):
+            for name, cmd in commands.items():
+                t0 = time.perf_counter()
+                res = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout)
+                dt = time.perf_counter() - t0
+                if res.returncode != 0:
+                    print(f"{name} failed: {res.stderr.strip().splitlines()[-1:]}")
+                    return
+                seconds[name].append(dt)
+    print(f"star-87k: {len(V):,} vertices, {len(F):,} triangles; {max(args.repeat, 1)} runs each, taking turns")
+    print("| command | median s | runs s |")
+    print("|---|---|---|")
+    for name, ts in seconds.items():
+        print(f"| {name} | {np.median(ts):.2f} | {', '.join(f'{t:.2f}' for t in ts)} |")
+    ratio = np.median(seconds["skeletor-wavefront"]) / np.median(seconds["curveskel"])
+    print(f"curveskel is {ratio:.2f}x as fast as skeletor's wavefront (target > 1)")
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quality", action="store_true", help="quality benchmark against peers (issue 5)")
+    ap.add_argument("--command", action="store_true",
+                    help="whole command on a ~90k-vertex OBJ against skeletor's wavefront (issue 11)")
     ap.add_argument("--figures", action="store_true",
                     help="only docs/figures/skeletons.png: default skeleton of each shared mesh "
                          "over its reference (also drawn by --quality)")
@@ -973,6 +1026,8 @@ def main(argv=None) -> None:
         return
     if args.quality:
         run_quality(args)
+    elif args.command:
+        run_command(args)
     elif args.figures:
         run_figures(args)
     else:

@@ -150,6 +150,14 @@ def print_summary(path, V, sk, seconds: float, out=sys.stdout) -> None:
               f"{info['small_components_vertices']} vertices, mapped to the nearest kept part); "
               "--min-component-area 0 keeps them", file=out)
     print(f"skeleton    {s['joints']} joints, {s['bones']} bones", file=out)
+    meta = sk.meta
+    sampled = []
+    if meta.get("fit_points_subset"):
+        sampled.append(f"fit on {meta['fit_points']:,} area-weighted vertices (--max-fit-points)")
+    if meta.get("medial_points_subset"):
+        sampled.append(f"medial balls against {meta['medial_points']:,} area-weighted surface points")
+    if sampled:
+        print(f"sampled     {'; '.join(sampled)} of {len(V):,}", file=out)
     print(f"energy      E0 {s['E0']:.6g} -> E {s['E']:.6g} in {s['iterations']} iterations "
           f"(solver {sk.meta.get('params', {}).get('solver', '?')})", file=out)
     stages = " | ".join(f"{k} {v:.3f}" for k, v in sk.timings.items())

@@ -118,14 +118,15 @@ def _to_arrays(man):
     return np.asarray(mesh.vert_properties[:, :3], float), np.asarray(mesh.tri_verts, np.int64)
 
 
-def star(n_arms: int = 4, arm: float = 4.0, radius: float = 0.5, n_around: int = 24):
+def star(n_arms: int = 4, arm: float = 4.0, radius: float = 0.5, n_around: int = 24, rings: int = 30):
     """``n_arms`` capsules from the origin in the xy-plane, united into ONE closed manifold mesh
-    (manifold3d booleans). Arm k points along angle 2*pi*k/n_arms; its tip centre is at ``arm``."""
+    (manifold3d booleans). Arm k points along angle 2*pi*k/n_arms; its tip centre is at ``arm``;
+    ``rings`` rings of ``n_around`` vertices along each arm."""
     ang = 2 * np.pi * np.arange(n_arms) / n_arms
     union = None
     for a in ang:
         u = np.array([np.cos(a), np.sin(a), 0.0])
-        path = np.linspace(0, 1, 30)[:, None] * (arm * u)
+        path = np.linspace(0, 1, rings)[:, None] * (arm * u)
         man = _manifold_from(*tube_along(path, radius, n_around))
         union = man if union is None else union + man
     return _to_arrays(union)

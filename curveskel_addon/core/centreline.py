@@ -266,6 +266,9 @@ def _radii_for_distances(d, w, J, bones, bone, t, smooth):
     mass = np.asarray(AtA.sum(axis=1)).ravel()
     floor = 0.05 * float(np.median(mass[mass > 0])) if np.any(mass > 0) else 1.0
     S, chain = chain_smoothness_rows(bones, J)
+    if J <= DENSE_RADII_JOINTS:
+        return _radii_dense(AtA, rhs, S, chain, smooth * np.maximum(mass, floor)[chain], floor,
+                            bones, J)
     H = AtA + S.T @ sp.diags(smooth * np.maximum(mass, floor)[chain]) @ S
     # every joint gets at least a weak pull to its neighbours' mean radius (joints without data)
     nb = sp.coo_matrix((np.ones(2 * len(bones)), (np.r_[bones[:, 0], bones[:, 1]],
@@ -275,6 +278,27 @@ def _radii_for_distances(d, w, J, bones, bone, t, smooth):
     H = H + 1e-3 * floor * (Lp.T @ Lp) + sp.eye(J) * 1e-12 * floor
     r = spsolve(H.tocsc(), rhs)
     return np.maximum(r, 0.0)
+
+
+#: Up to this many joints the radius fit's J x J system is solved dense: the sparse products
+#: and their set-up cost more than the solve (a third of the radius fits on the 87k star).
+DENSE_RADII_JOINTS = 400
+
+
+def _radii_dense(AtA, rhs, S, chain, c, floor, bones, J):
+    """:func:`_radii_for_distances`'s system, assembled and solved as dense J x J arrays:
+    H = A^T W A + S^T diag(c) S + 1e-3 floor Lp^T Lp + 1e-12 floor I, r = H^-1 rhs, clipped
+    at 0 (Lp = I - D^-1 N: each joint against its neighbours' mean)."""
+    H = AtA.toarray()
+    Sd = S.toarray()
+    H += (Sd * c[:, None]).T @ Sd
+    N = np.zeros((J, J))
+    np.add.at(N, (np.r_[bones[:, 0], bones[:, 1]], np.r_[bones[:, 1], bones[:, 0]]), 1.0)
+    deg = np.maximum(N.sum(axis=1), 1)
+    Lp = np.eye(J) - N / deg[:, None]
+    H += 1e-3 * floor * (Lp.T @ Lp)
+    H[np.diag_indices(J)] += 1e-12 * floor
+    return np.maximum(np.linalg.solve(H, rhs), 0.0)
 
 
 def _signed_depth(tree, inside, V=None, F=None, k: int = 8, ids=None):
@@ -395,6 +419,7 @@ def centre_stage(state, spacing_abs, *, smooth, seed=0):
                                         MEDIAL_SAMPLES, seed=seed, key=state.key,
                                         weights=state.areas)
     state.medial = (M, rho)
+    state.medial_points = int(len(balls.pts))       # the surface points the balls shrank against
     # contract the tiny bones (direction noise), then split the bones of branching regions
     joints, bones, bmap = collapse_short_bones(state.joints, state.bones,
                                                COLLAPSE_SPACINGS * spacing_abs)

@@ -187,7 +187,8 @@ class SkeletonRun:
         t0 = time.perf_counter()
         with self._timed("centre"):
             centre_stage(st, self._bone_spacing, smooth=p.smoothness, seed=p.seed)
-        st.record("centre", time.perf_counter() - t0)
+        st.record("centre", time.perf_counter() - t0,
+                  medial_points=getattr(st, "medial_points", 0))
         self.progress("centre", 1.0)
         t0 = time.perf_counter()
         with self._timed("edit"):
@@ -314,7 +315,12 @@ class SkeletonRun:
                                   else len(self.mesh.V)),
                 "stages": [dict(x) for x in self.state.log],
                 "fit_energy": [float(e) for e in self.energy],
-                "fit_points_subset": self.fit_subset is not None}
+                "fit_points_subset": self.fit_subset is not None,
+                # above MEDIAL_TREE_POINTS vertices the medial balls shrink against an
+                # area-weighted subsample of the surface (said here, as the fit's subset)
+                "medial_points": int(getattr(self.state, "medial_points", 0)),
+                "medial_points_subset": bool(getattr(self.state, "medial_points", 0)
+                                             < len(self.mesh.V))}
         if getattr(self, "edit_log", None) is not None:
             meta["edit"] = self.edit_log
         if getattr(self, "contain_log", None) is not None:

@@ -108,3 +108,21 @@ def test_help_explains_every_method_parameter():
         assert art < h.index("\n  --" + name.replace("_", "-"), art) < adv
     for name in names - set(SkeletonParams.ARTIST):
         assert h.index("\n  --" + name.replace("_", "-")) > adv
+
+
+def test_subsampled_stages_are_said_on_the_console_and_in_meta(tmp_path):
+    # above --max-fit-points the fit uses an area-weighted subset: the summary says so (issue 11:
+    # nothing approximated silently); a run on all points prints no such line
+    V, F = capsule(n_around=16, n_body=20)
+    path = tmp_path / "capsule.obj"
+    write_obj(path, V, F)
+    out = tmp_path / "o.json"
+    r = run(path, "--json", out, "--max-fit-points", 200)
+    assert r.returncode == 0, r.stderr
+    line = [x for x in r.stdout.splitlines() if x.startswith("sampled")]
+    assert len(line) == 1 and "fit on 200 " in line[0] and f"of {len(V):,}" in line[0]
+    meta = json.loads(out.read_text())["meta"]
+    assert meta["fit_points_subset"] is True and meta["fit_points"] == 200
+    assert meta["medial_points_subset"] is False and meta["medial_points"] == len(V)
+    r = run(path, "--json", out)
+    assert r.returncode == 0 and not any(x.startswith("sampled") for x in r.stdout.splitlines())

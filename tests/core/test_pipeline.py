@@ -201,3 +201,22 @@ def test_a_fit_that_lays_one_arm_across_the_other_in_a_thick_part_is_undone():
     assert back[-1] and not back[4]
     assert len(crossing_pairs(after, bones, D)) == 0
     np.testing.assert_array_equal(after, before)
+
+
+def test_medial_balls_on_a_surface_subsample_are_reported(monkeypatch):
+    # above centreline.MEDIAL_TREE_POINTS vertices the medial balls shrink against an
+    # area-weighted subsample (the 3,000 medial samples included): meta says how many points
+    import curveskel_addon.core.centreline as centreline
+    from curveskel_addon.core import skeletonize
+    from meshes import capsule
+    V, F = capsule(n_around=48, n_body=100)
+    assert len(V) > centreline.MEDIAL_SAMPLES + 1000
+    full = skeletonize(V, F)
+    assert full.meta["medial_points"] == len(V) and not full.meta["medial_points_subset"]
+    monkeypatch.setattr(centreline, "MEDIAL_TREE_POINTS", 500)
+    sub = skeletonize(V, F)
+    assert sub.meta["medial_points_subset"]
+    assert centreline.MEDIAL_SAMPLES <= sub.meta["medial_points"] <= centreline.MEDIAL_SAMPLES + 500
+    # the same curve within a small fraction of the capsule's radius
+    assert sub.n_joints == full.n_joints
+    assert np.abs(sub.joints[:, :3] - full.joints[:, :3]).max() < 0.02
