@@ -354,14 +354,14 @@ def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0, key=None, weig
     balls : MedialBalls, with its KD-tree of the surface vertices (reusable)
     """
     from .medial import MedialBalls
-    from .state import canonical_sample, canonical_subset
+    from .state import canonical_subset
     from .vertex_area import vertex_areas
     n = len(V)
     subsample = n > MEDIAL_TREE_POINTS             # the balls' points too (see below)
     key = np.arange(n) if key is None else key
     order = np.argsort(key, kind="stable") if n > k or subsample else None
     a = vertex_areas(V, F) if weights is None and order is not None else weights
-    idx = np.arange(n) if n <= k else canonical_sample(key, k, seed, p=a, order=order)
+    idx = np.arange(n) if n <= k else canonical_subset(key, k, seed, p=a, order=order)
     X = np.asarray(fa_joints)[:, :3]
     i, j = fa_bones[bone[idx], 0], fa_bones[bone[idx], 1]
     sig = t[idx, None] * X[i] + (1.0 - t[idx, None]) * X[j]

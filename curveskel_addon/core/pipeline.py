@@ -40,7 +40,7 @@ from .problem import FitProblem, SolverState
 from .reeb import first_approximation
 from .skeleton import Skeleton
 from .solvers import solve_steps
-from .state import PipelineState, canonical_sample
+from .state import PipelineState, canonical_subset
 from .vertex_area import vertex_areas
 
 __all__ = ["skeletonize", "SkeletonRun"]
@@ -208,7 +208,7 @@ class SkeletonRun:
         self.fit_subset = None
         n = len(pr.points)
         if p.area_weighted and p.max_fit_points and n > p.max_fit_points:
-            idx = canonical_sample(st.key, p.max_fit_points, p.seed)
+            idx = canonical_subset(st.key, p.max_fit_points, p.seed)
             self.fit_subset = idx
             pr = FitProblem(pr.points[idx], pr.weights[idx] * (n / p.max_fit_points), pr.joints,
                             pr.bones, pr.bone[idx], pr.t[idx], pr.meta)

@@ -20,31 +20,23 @@ from .energy import energy
 from .mapping import closest_on_bones
 from .problem import FitProblem
 
-__all__ = ["PipelineState", "candidates_from_pairs", "canonical_sample", "canonical_subset"]
-
-
-def canonical_sample(key, k, seed=0, p=None, order=None):
-    """``k`` indices drawn without replacement (probabilities ``p``), in an order that does not
-    depend on how the points are numbered: the draw runs over the points sorted by ``key`` (a
-    quantity of the shape, e.g. the geodesic distance from the pole), so a permuted, moved,
-    rotated or scaled copy of the mesh gets the same points (issue 12). Sorted indices.
-    ``order``: ``np.argsort(key, kind="stable")`` if already at hand.
-    """
-    key = np.asarray(key, np.float64)
-    n = len(key)
-    if k >= n:
-        return np.arange(n)
-    order = np.argsort(key, kind="stable") if order is None else order
-    q = None if p is None else np.asarray(p, np.float64)[order] / float(np.sum(p))
-    pick = np.random.default_rng(seed).choice(n, size=k, replace=False, p=q)
-    return np.sort(order[pick])
+__all__ = ["PipelineState", "candidates_from_pairs", "canonical_subset"]
 
 
 def canonical_subset(key, k, seed=0, p=None, order=None):
-    """Like :func:`canonical_sample` (numbering-free, sorted indices), in O(n) for large ``k``
-    once ``key`` is sorted: the ``k`` points with the largest ``u ** (1 / p)`` for uniform ``u``
-    drawn in ``key`` order (Efraimidis & Spirakis's weighted sampling without replacement;
-    ``rng.choice`` with probabilities costs 0.2 s for 250k of 1M points, this 0.03 s)."""
+    """``k`` indices drawn without replacement (probabilities ``p``, uniform if None), in an
+    order that does not depend on how the points are numbered: the ``k`` points with the largest
+    ``u ** (1 / p)`` for uniform ``u`` drawn in ``key`` order (a quantity of the shape, e.g. the
+    geodesic distance from the pole), so a permuted, moved, rotated or scaled copy of the mesh
+    gets the same points (issue 12). Sorted indices. ``order``: ``np.argsort(key,
+    kind="stable")`` if already at hand.
+
+    Efraimidis & Spirakis's weighted sampling without replacement: each point's draw depends on
+    its own ``u`` and ``p`` only, so a last-bit change of the weights (a rotated or jittered mesh's
+    areas) changes the pick only for a point within rounding of the k-th score. ``rng.choice``
+    with probabilities walks a cumulative sum instead: one such change moved 26 of 3,000 medial
+    samples of the armadillo jittered by 1e-9 D (and it is O(n k): 0.2 s for 250k of 1M points,
+    this 0.03 s)."""
     key = np.asarray(key, np.float64)
     n = len(key)
     if k >= n:
