@@ -200,6 +200,65 @@ class _Sorted:
         return bone, t
 
 
+def blended_signed_distance(x, pts, nrm, tree, K, h2):
+    """A smooth signed distance to the surface, positive inside, and its gradient.
+
+    A weighted mean over the K nearest surface points p_i of their plane distances
+    ``-n_i . (x - p_i)``, weights ``a_i f_i / (|x - p_i|^2 + h^2)`` (h^2 = ``h2``: the median
+    spacing of the surface points, squared). The plain distance to the point set is a min of
+    cones, whose kinks stalled LM (no damping gave a descent); the planes of neighbouring points
+    nearly agree, so this ``d`` is smooth at the scale of the mesh.
+
+    - ``a_i = max(n_i . n_0, 0)^2``: only the surface on the nearest point's side counts (across
+      a part thinner than the blending radius, a tentacle, the planes of the far side would say
+      "inside" just outside);
+    - ``f_i = (1 - (|x - p_i| / |x - p_{K+1}|)^2)^2`` fades each weight to 0 at the (K+1)-th
+      neighbour's distance, so a swap of the K-th and (K+1)-th neighbours (a tie under rounding:
+      a rotated mesh) is no jump in d (issue 12: armadillo rotated, 1.2e-2 -> 9.8e-4 D).
+
+    The gradient differentiates the distance weights; ``a`` and ``f`` are taken as locally fixed.
+
+    Parameters
+    ----------
+    x : (S, 3) float
+    pts, nrm : (P, 3) float   surface points and unit outward normals
+    tree : cKDTree of ``pts``
+    K : int
+    h2 : float
+
+    Returns
+    -------
+    d : (S,) float
+    grad_d : (S, 3) float
+    """
+    k = min(K + 1, len(pts))
+    dist, idx = tree.query(x, k=k)
+    dist, idx = dist.reshape(len(x), k), idx.reshape(len(x), k)
+    if k > 1:
+        far = dist[:, -1:]
+        fade = np.clip(1.0 - (dist[:, :-1] / np.maximum(far, 1e-300)) ** 2, 0.0, 1.0) ** 2
+        dist, idx = dist[:, :-1], idx[:, :-1]
+    else:
+        fade = np.ones_like(dist)
+    diff = x[:, None, :] - pts[idx]                           # (S, k, 3)
+    n = nrm[idx]
+    sd = -np.einsum("jki,jki->jk", diff, n)                   # plane distances, + inside
+    a = np.clip(np.einsum("jki,ji->jk", n, n[:, 0]), 0.0, 1.0) ** 2
+    q = 1.0 / (dist * dist + h2)
+    w = a * fade * q
+    # A sample whose nearest surface point has a zero normal (a vertex whose face normals
+    # cancel) would have no weight: it takes the nearest point alone, with weight 1.
+    lone = ~(w.sum(axis=1) > 0)
+    if lone.any():
+        w[lone, 0] = 1.0
+    W = w.sum(axis=1)
+    d = (w * sd).sum(axis=1) / W
+    dw = -2.0 * (w * q)[:, :, None] * diff                     # dw_i/dx (a, f: locally fixed)
+    grad_d = ((w[:, :, None] * -n).sum(axis=1)
+              + ((sd - d[:, None])[:, :, None] * dw).sum(axis=1)) / W[:, None]
+    return d, grad_d
+
+
 class _Regulariser:
     """Containment and smoothness residuals (see the module docstring), built once per solve.
 
@@ -287,42 +346,16 @@ class _Regulariser:
         """Violation ``g = r - d(x)`` (S,) at every containment sample (joints and points along
         the bones, ``x, r`` interpolated linearly), and its gradient in the sample (S, 4).
 
-        ``d`` is a smooth signed distance, positive inside: a weighted mean over the K nearest
-        surface points p_i of their plane distances ``-n_i . (x - p_i)``, weights
-        ``1 / (|x - p_i|^2 + h^2)`` (h: the median spacing of the surface points). The plain
-        distance to the point set is a min of cones, whose kinks stalled LM (no damping gave a
-        descent); the planes of neighbouring points nearly agree, so this ``d`` is smooth at the
-        scale of the mesh. Its gradient is exact (weights differentiated too).
+        ``d``: :func:`blended_signed_distance`.
         """
         key = joints.tobytes()
         if self._memo is not None and self._memo[0] == key:
             # The step just accepted was evaluated as a trial: the next assembly asks again.
             return self._memo[1]
         X = self.W @ joints
-        x = X[:, :3]
-        k = min(self.K, len(self.pts))
-        dist, idx = self.tree.query(x, k=k)
-        dist, idx = dist.reshape(len(x), k), idx.reshape(len(x), k)
-        diff = x[:, None, :] - self.pts[idx]                       # (J, k, 3)
-        n = self.nrm[idx]
-        sd = -np.einsum("jki,jki->jk", diff, n)                   # plane distances, + inside
-        # Only the surface on the nearest point's side: across a part thinner than the blending
-        # radius (a tentacle) the planes of the far side would say "inside" just outside.
-        a = np.clip(np.einsum("jki,ji->jk", n, n[:, 0]), 0.0, 1.0) ** 2
-        b = 1.0 / (dist * dist + self.h2)
-        w = a * b
-        # A sample whose nearest surface point has a zero normal (a vertex whose face normals
-        # cancel) would have no weight: it takes the nearest point alone, with weight 1.
-        lone = ~(w.sum(axis=1) > 0)
-        if lone.any():
-            w[lone, 0] = 1.0
-        W = w.sum(axis=1)
-        d = (w * sd).sum(axis=1) / W
-        dw = -2.0 * (a * b * b)[:, :, None] * diff                 # dw_i/dx (a: locally fixed)
-        grad_d = ((w[:, :, None] * -n).sum(axis=1)
-                  + ((sd - d[:, None])[:, :, None] * dw).sum(axis=1)) / W[:, None]
+        d, grad_d = blended_signed_distance(X[:, :3], self.pts, self.nrm, self.tree, self.K, self.h2)
         g = X[:, 3] - d
-        grad = np.empty((len(x), 4))
+        grad = np.empty((len(X), 4))
         grad[:, :3] = -grad_d
         grad[:, 3] = 1.0
         self._memo = (key, (g, grad))
