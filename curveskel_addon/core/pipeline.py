@@ -187,8 +187,7 @@ class SkeletonRun:
         t0 = time.perf_counter()
         with self._timed("centre"):
             centre_stage(st, self._bone_spacing, smooth=p.smoothness, seed=p.seed)
-        st.record("centre", time.perf_counter() - t0,
-                  medial_points=getattr(st, "medial_points", 0))
+        st.record("centre", time.perf_counter() - t0, medial_points=st.medial_points)
         self.progress("centre", 1.0)
         t0 = time.perf_counter()
         with self._timed("edit"):
@@ -318,9 +317,8 @@ class SkeletonRun:
                 "fit_points_subset": self.fit_subset is not None,
                 # above MEDIAL_TREE_POINTS vertices the medial balls shrink against an
                 # area-weighted subsample of the surface (said here, as the fit's subset)
-                "medial_points": int(getattr(self.state, "medial_points", 0)),
-                "medial_points_subset": bool(getattr(self.state, "medial_points", 0)
-                                             < len(self.mesh.V))}
+                "medial_points": int(self.state.medial_points),
+                "medial_points_subset": bool(0 < self.state.medial_points < len(self.mesh.V))}
         if getattr(self, "edit_log", None) is not None:
             meta["edit"] = self.edit_log
         if getattr(self, "contain_log", None) is not None:

@@ -33,7 +33,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from .errors import CurveSkelError
-from .mapping import _all_bones, closest_on_bones
+from .mapping import closest_on_bones
 from .rig_layout import BLEND_HUB, BLEND_SYMMETRIC, RigLayout
 
 __all__ = ["skin_weights", "smooth_weights", "smoothing_iterations", "smoothstep", "project_on_bones",
@@ -474,13 +474,14 @@ class _Graph:
 def _closest_bones(P, H, T, ids):
     """Closest of the segments H[ids]-T[ids] for each point (a position in ``ids``); the same
     choice as :func:`project_on_bones` (the first of equally close bones), without its KD-tree:
-    :func:`mapping._all_bones` (every segment scored in float32, near-ties compared exactly)."""
+    :func:`mapping.closest_on_bones` with every segment a candidate (scored in float32, near-ties
+    compared exactly)."""
     n, B = len(P), len(ids)
     if n == 0 or B == 1:
         return np.zeros(n, np.int64)
     X = np.concatenate([H[ids], T[ids]])              # sigma = t * head + (1 - t) * tail
     segs = np.stack([np.arange(B), B + np.arange(B)], 1)
-    return _all_bones(P, X, segs)[0]
+    return closest_on_bones(P, X, segs)[0]
 
 
 def _labels(P, graph, H, T, deform):

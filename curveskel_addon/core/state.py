@@ -107,6 +107,7 @@ class PipelineState:
     pairs: np.ndarray
     log: list = field(default_factory=list)
     medial: tuple | None = None     # (M (k, 3), rho (k,)): medial points of surface samples
+    medial_points: int = 0          # surface points the medial balls shrank against
     key: np.ndarray | None = None   # (n,) numbering-free order of the vertices (geodesic f)
     areas: np.ndarray | None = None  # (n,) vertex areas, if the weights step computed them
     _inside: object = None
