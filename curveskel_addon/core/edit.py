@@ -404,6 +404,19 @@ def remove_sharp_turns(joints, bones, tol, max_turn=60.0, max_rounds=20):
     return joints, bones, bone_map
 
 
+def _apply(state, joints, bones, bone_map):
+    """An operator's result into the state, then sigma re-mapped and the radii refitted; an
+    operator that changed nothing leaves the state as it was (the refit would repeat the last
+    one exactly: the state's mapping and radii are always those of a refit)."""
+    if (len(joints) == len(state.joints) and np.array_equal(bones, state.bones)
+            and np.array_equal(joints, state.joints)
+            and np.array_equal(bone_map, np.arange(len(bone_map)))):
+        return
+    state.joints, state.bones = joints, bones
+    state.apply_bone_map(bone_map)
+    _refit(state)
+
+
 def _refit(state):
     from .centreline import fit_radii
     state.remap()
@@ -421,17 +434,10 @@ def edit_stage(state, *, prune, simplify, max_joints, diag):
     out = {"joints_in": int(len(state.joints))}
     if prune > 0:
         n0 = len(state.joints)
-        state.joints, state.bones, m = prune_leaves(state.joints, state.bones, prune)
-        state.apply_bone_map(m)
-        _refit(state)
+        _apply(state, *prune_leaves(state.joints, state.bones, prune))
         out["pruned_joints"] = int(n0 - len(state.joints))
     if C["zip_radius_fraction"] > 0:
-        n0 = len(state.bones)
-        state.joints, state.bones, m = zip_parallel_chains(state.joints, state.bones,
-                                                           C["zip_radius_fraction"])
-        if len(state.bones) != n0 or not np.array_equal(m, np.arange(n0)):
-            state.apply_bone_map(m)
-            _refit(state)
+        _apply(state, *zip_parallel_chains(state.joints, state.bones, C["zip_radius_fraction"]))
 
     def merge(tol_scale):
         # a fraction of the local radius, capped at a fraction of the size, and the longest
@@ -439,19 +445,15 @@ def edit_stage(state, *, prune, simplify, max_joints, diag):
         grow = max(tol_scale / C["merge_radius_fraction"], 1.0)
         cap = C["merge_max_diag"] * diag * grow
         tol = np.minimum(tol_scale * state.joints[:, 3], cap)
-        j, b, m = merge_chains(state.joints, state.bones, tol, C["merge_max_length"] * diag * grow)
-        state.joints, state.bones = j, b
-        state.apply_bone_map(m)
-        _refit(state)
+        _apply(state, *merge_chains(state.joints, state.bones, tol,
+                                    C["merge_max_length"] * diag * grow))
 
     if simplify > 0:
         merge(simplify)
     if C["sharp_turn"] < 180:
-        state.joints, state.bones, m = remove_sharp_turns(
+        _apply(state, *remove_sharp_turns(
             state.joints, state.bones, C["sharp_radius_fraction"] * state.joints[:, 3],
-            C["sharp_turn"])
-        state.apply_bone_map(m)
-        _refit(state)
+            C["sharp_turn"]))
     scale = max(simplify, C["merge_radius_fraction"])
     rounds = 0
     while max_joints and len(state.joints) > max_joints and rounds < 20:
