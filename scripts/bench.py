@@ -427,7 +427,7 @@ def f3(x, nd=3):
 
 # -- speed ------------------------------------------------------------------------------------
 STAGE_ORDER = ["clean", "components", "pole", "contours", "reeb", "meb", "mapping", "weights",
-               "centre", "edit", "optimise", "finish", "radii", "contain"]
+               "centre", "edit", "optimise", "finish", "radii", "contain", "polish"]
 #: Issue 11's speed targets: ratio to one Dijkstra for ~100k meshes, seconds for the shared
 #: meshes (armadillo and horse get more) and for 1M (with the 2 GB peak).
 SPEED_TARGETS = {"dijkstra_ratio_100k": 25.0, "shared_s": 1.0, "shared_big_s": 1.5,

@@ -41,7 +41,8 @@ from scipy.sparse.linalg import spsolve
 from .mapping import closest_on_bones
 
 __all__ = ["split_long_bones", "region_candidates", "fit_centreline", "fit_radii", "medial_samples",
-           "chain_smoothness_rows", "centre_stage", "fit_radii_surface", "smooth_chains"]
+           "chain_smoothness_rows", "chain_neighbours", "centre_stage", "fit_radii_surface",
+           "smooth_chains"]
 
 
 def split_long_bones(joints, bones, bone_region, h, only=None):
@@ -120,6 +121,23 @@ def _hat_matrix(bones, bone, t, J, sw):
     return sp.csr_matrix((vals, (rows, cols)), shape=(n, J))
 
 
+def chain_neighbours(bones, J):
+    """The joints of degree 2 and their two neighbours, without a Python loop.
+
+    Returns
+    -------
+    chain, a, b : (c,) int
+    """
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    deg = np.bincount(bones.ravel(), minlength=J)
+    chain = np.flatnonzero(deg == 2)
+    ends = np.r_[bones[:, 0], bones[:, 1]]
+    other = np.r_[bones[:, 1], bones[:, 0]]
+    o = np.argsort(ends, kind="stable")
+    starts = np.concatenate([[0], np.cumsum(deg)])
+    return chain, other[o][starts[chain]], other[o][starts[chain] + 1]
+
+
 def chain_smoothness_rows(bones, J):
     """Sparse (c x J) rows ``x_j - (x_a + x_b) / 2`` for every joint j of degree 2, and the js.
 
@@ -133,16 +151,7 @@ def chain_smoothness_rows(bones, J):
     S : scipy.sparse.csr_matrix (c, J)
     chain : (c,) int, the joints of degree 2
     """
-    bones = np.asarray(bones, np.int64).reshape(-1, 2)
-    deg = np.bincount(bones.ravel(), minlength=J)
-    chain = np.flatnonzero(deg == 2)
-    # the two neighbours of each chain joint, without a Python loop
-    ends = np.r_[bones[:, 0], bones[:, 1]]
-    other = np.r_[bones[:, 1], bones[:, 0]]
-    o = np.argsort(ends, kind="stable")
-    starts = np.concatenate([[0], np.cumsum(deg)])
-    a = other[o][starts[chain]]
-    b = other[o][starts[chain] + 1]
+    chain, a, b = chain_neighbours(bones, J)
     c = len(chain)
     rows = np.repeat(np.arange(c), 3)
     cols = np.stack([chain, a, b], axis=1).ravel()
@@ -301,7 +310,7 @@ def _radii_dense(AtA, rhs, S, chain, c, floor, bones, J):
     return np.maximum(np.linalg.solve(H, rhs), 0.0)
 
 
-def _signed_depth(tree, inside, V=None, F=None, k: int = 8, ids=None):
+def _signed_depth(tree, inside, V=None, F=None, k: int = 8, ids=None, face_of=None):
     """Distance to the surface, negative outside the mesh: the centroid of a curved medial set
     (a ring's arc) can fall in the hole, far from the surface but not in the shape.
 
@@ -309,17 +318,18 @@ def _signed_depth(tree, inside, V=None, F=None, k: int = 8, ids=None):
     the vertices), not to the nearest vertex: a point lying on a large face is ~0 deep, so
     whether the ray-parity test calls it inside or outside (a matter of the last bits there)
     cannot change a decision that compares depths (the octopus scaled by 1e6: 0.011 D).
-    ``ids``: the vertex of each point of ``tree``, if it holds a subset of the vertices."""
+    ``ids``: the vertex of each point of ``tree``, if it holds a subset of the vertices.
+    ``face_of``: the faces around each vertex (:func:`.mesh_graph.faces_around`), if at hand."""
+    from .mesh_graph import faces_around
     from .quality import point_triangle_distance
 
-    faces_of = []           # the faces around each vertex (CSR by vertex), built on first use
+    faces_of = [] if face_of is None else [face_of[1], face_of[0]]
 
     def around(v):
         """(point, face) pairs: every face holding one of the vertices ``v`` (p, k)."""
-        if not faces_of:
-            corner = np.argsort(F.ravel(), kind="stable")
-            starts = np.searchsorted(F.ravel()[corner], np.arange(len(V) + 1))
-            faces_of.extend([corner // 3, starts])
+        if not faces_of:            # the faces around each vertex (CSR), built on first use
+            starts, face = faces_around(F, len(V))
+            faces_of.extend([face, starts])
         face, starts = faces_of
         lo, cnt = starts[v.ravel()], np.diff(starts)[v.ravel()]
         pi = np.repeat(np.repeat(np.arange(len(v)), v.shape[1]), cnt)
@@ -441,8 +451,8 @@ def centre_stage(state, spacing_abs, *, smooth, seed=0):
     reg = np.repeat(state.pairs[:, 0], cnt)
     local = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
     state.pairs = np.unique(np.stack([reg, o[np.repeat(st[state.pairs[:, 1]], cnt) + local]], 1), axis=0)
-    depth = (_signed_depth(balls.tree, state.inside, V, F, ids=balls.ids) if DEPTH_SELECT
-             else None)
+    depth = (_signed_depth(balls.tree, state.inside, V, F, ids=balls.ids,
+                           face_of=state.faces_around) if DEPTH_SELECT else None)
     X, _, _ = fit_centreline(M, rho, joints, bones, state.candidates(idx), smooth=smooth,
                              rounds=CENTRE_ROUNDS, map_points=V[idx] if MAP_VERTICES else None,
                              depth=depth)

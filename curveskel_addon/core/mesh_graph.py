@@ -7,7 +7,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 __all__ = ["unique_edges", "edge_table", "edge_ids", "face_edges", "edge_lengths", "adjacency",
-           "edge_csr", "components"]
+           "edge_csr", "components", "faces_around"]
 
 
 def unique_edges(F: np.ndarray) -> np.ndarray:
@@ -137,3 +137,19 @@ def components(n: int, F: np.ndarray) -> tuple[int, np.ndarray]:
     """Connected components of the vertices through the faces: (count, label per vertex)."""
     E = unique_edges(F)
     return connected_components(adjacency(n, E), directed=False)
+
+
+def faces_around(F: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The faces around each vertex, CSR: ``faces[indptr[v]:indptr[v + 1]]`` (increasing).
+
+    Examples
+    --------
+    >>> indptr, faces = faces_around(np.array([[0, 1, 2], [0, 2, 3]]), 4)
+    >>> faces[indptr[2]:indptr[3]].tolist()
+    [0, 1]
+    """
+    fr = np.asarray(F, np.int64).ravel()
+    corner = np.argsort(fr, kind="stable")
+    indptr = np.zeros(n + 1, np.int64)
+    np.cumsum(np.bincount(fr, minlength=n), out=indptr[1:])
+    return indptr, corner // 3

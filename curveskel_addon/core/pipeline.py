@@ -10,6 +10,8 @@
       -> radii       chains smoothed, radii fitted to the surface with the curve fixed
                      (:func:`.centreline.fit_radii_surface`)
       -> contain     tips trimmed, bones that leave the mesh split at medial points (:mod:`.edit`)
+      -> polish      chain joints towards the centroids of the mesh's cross-sections through
+                     them, radii refitted (:mod:`.cross_section`)
       -> Skeleton    every input vertex mapped; the reported E is that of the returned skeleton
 
 Why this order (issue 10): the *shape* of the curve comes from the mesh's structure (Reeb
@@ -30,6 +32,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .centreline import centre_stage, fit_radii_surface, smooth_chains
+from .cross_section import polish_chains
 from .edit import contain_stage, edit_stage
 from .errors import CurveSkelError
 from .mapping import closest_on_bones
@@ -58,6 +61,9 @@ FOLD_GUARD = True
 #: ... and so do joints it moved into a crossing (two bones within 0.3 of their radius of each
 #: other, far apart along the skeleton: quality.crossing_pairs).
 CROSSING_GUARD = True
+#: Last, chain joints move towards the centroids of the mesh's cross-sections through them
+#: (:mod:`.cross_section`), radii refitted.
+POLISH = True
 
 
 class SkeletonRun:
@@ -177,6 +183,8 @@ class SkeletonRun:
                            np.unique(np.concatenate(pairs), axis=0))
         st.areas = areas
         st._inside = self._inside
+        if comp_meta and all("longest_edge" in m for m in comp_meta):
+            st.longest_edge = max(m["longest_edge"] for m in comp_meta)
         st.key = np.where(np.isfinite(key), key, 0.0)
         st.record("initialise", sum(self.timings.get(k, 0.0) for k in
                                     ("pole", "contours", "reeb", "meb", "mapping")))
@@ -261,14 +269,13 @@ class SkeletonRun:
                     # the fit of E moves joints a little each; a wiggle of neighbours in
                     # opposite directions reads as a zig-zag: smooth it out along the chains
                     st.joints[:, :3] = smooth_chains(st.joints, st.bones, FIT_SMOOTHING)
-                if SURFACE_RADII:
-                    st.joints[:, 3], st.bone, st.t = fit_radii_surface(
-                        st.V, st.weights, st.joints, st.bones)
                 from .quality import bbox_diagonal       # (lazy, as the stages import it)
 
-                if FOLD_GUARD and undo_new_folds(st.joints, st.bones, before_fit,
-                                                 bbox_diagonal(st.V)).any() \
-                        and SURFACE_RADII:
+                if FOLD_GUARD:
+                    # positions only (crossings measured with the edit stage's radii), so the
+                    # radii are fitted once, after
+                    undo_new_folds(st.joints, st.bones, before_fit, bbox_diagonal(st.V))
+                if SURFACE_RADII:
                     st.joints[:, 3], st.bone, st.t = fit_radii_surface(
                         st.V, st.weights, st.joints, st.bones)
             st.record("radii", time.perf_counter() - t0)
@@ -278,11 +285,31 @@ class SkeletonRun:
                                                  max_joints=self.params.max_joints)
                 _into_box(st)
             st.record("contain", time.perf_counter() - t0)
+            if POLISH:
+                t0 = time.perf_counter()
+                with self._timed("polish"):
+                    moved = self._polish()
+                st.record("polish", time.perf_counter() - t0, moved=moved)
         # E after every stage (all vertices, each stage's own mapping); the last is the E of
         # the returned skeleton with its returned mapping. The fit's iterations are in meta.
         E = [x["energy"] for x in st.log]
         self._finished = self._to_skeleton(st.joints, st.bones, st.bone, st.t, E)
         return self._finished
+
+    def _polish(self) -> int:
+        """The polish stage: chain joints towards their cross-sections' centroids
+        (:func:`.cross_section.polish_chains`), radii refitted to the surface, joints moved into
+        a new fold or crossing put back. Returns the chain joints whose section was found."""
+        from .quality import bbox_diagonal
+        st = self.state
+        before = st.joints.copy()
+        st.joints[:, :3], moved = polish_chains(st.V, st.F, st.joints, st.bones, st.inside,
+                                                face_of=st.faces_around, edge=st.longest_edge)
+        if FOLD_GUARD:
+            # positions only (crossings measured with the radii before): one radius fit after
+            undo_new_folds(st.joints, st.bones, before, bbox_diagonal(st.V))
+        st.joints[:, 3], st.bone, st.t = fit_radii_surface(st.V, st.weights, st.joints, st.bones)
+        return moved
 
     def _mapping(self, joints, s: SolverState):
         """sigma of every working vertex: the solver's own when it fitted every vertex,

@@ -110,8 +110,10 @@ class PipelineState:
     medial_points: int = 0          # surface points the medial balls shrank against
     key: np.ndarray | None = None   # (n,) numbering-free order of the vertices (geodesic f)
     areas: np.ndarray | None = None  # (n,) vertex areas, if the weights step computed them
+    longest_edge: float | None = None  # the working mesh's longest edge (from initialise)
     _inside: object = None
     _size: float | None = None
+    _faces_around: tuple | None = None
 
     @property
     def size(self) -> float:
@@ -128,6 +130,15 @@ class PipelineState:
             from .quality import InsideTest
             self._inside = InsideTest(self.V, self.F)
         return self._inside
+
+    @property
+    def faces_around(self):
+        """(indptr, faces): the faces around each vertex (:func:`.mesh_graph.faces_around`),
+        built once."""
+        if self._faces_around is None:
+            from .mesh_graph import faces_around
+            self._faces_around = faces_around(self.F, len(self.V))
+        return self._faces_around
 
     @property
     def n_regions(self) -> int:

@@ -1,0 +1,134 @@
+"""Unit tests of core/cross_section.py (issue 10: the polish stage): section centroids against
+the analytic centre of a box, a tube and a plate's strip; the loops it refuses; the polish of a
+displaced chain."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from curveskel_addon.core.cross_section import (FADE, REACH, STEP, longest_edge, polish_chains,
+                                                section_centroids)
+from curveskel_addon.core.quality import InsideTest
+from tests.meshes import BAR, PLATE, box_bar, capsule, plate_with_holes
+
+
+@pytest.fixture(scope="module")
+def bar():
+    return box_bar()
+
+
+@pytest.fixture(scope="module")
+def plate():
+    return plate_with_holes()
+
+
+def test_box_section_centroid_is_the_axis(bar):
+    """The section of the 8 x 1 x 1 bar across x is the unit square about the axis, wherever
+    the point lies in it."""
+    V, F = bar
+    X = np.array([[-2.0, 0.3, -0.2], [0.0, -0.45, 0.45], [1.5, 0.0, 0.1]])
+    C, extent = section_centroids(V, F, X, np.tile([1.0, 0, 0], (3, 1)), [2.0, 2.0, 2.0])
+    assert np.isfinite(extent).all()
+    np.testing.assert_allclose(C, X * [1, 0, 0], atol=1e-9)
+
+
+def test_tube_section_centroid_is_on_the_axis_also_for_a_slanted_plane():
+    """A capsule (radius 1, axis z): a plane across the axis cuts a regular polygon, a plane
+    slanted by 25 degrees an ellipse-like polygon; both centred on the axis."""
+    V, F = capsule(radius=1.0, length=6.0, n_around=32, n_body=40)
+    X = np.array([[0.4, 0.2, 2.0], [-0.3, 0.5, 3.3], [0.1, -0.6, 4.0]])
+    a = np.radians(25)
+    T = np.array([[0, 0, 1.0], [np.sin(a), 0, np.cos(a)], [0, np.sin(a), np.cos(a)]])
+    C, extent = section_centroids(V, F, X, T, 3.0)
+    assert np.isfinite(extent).all()
+    # on the axis: x = y = 0 (within the faceting of a 32-gon, ~1e-3 of the radius), and in
+    # the point's plane
+    assert np.abs(C[:, :2]).max() < 2e-3, C
+    np.testing.assert_allclose(np.einsum("ij,ij->i", C - X, T), 0, atol=1e-12)
+
+
+def test_plate_strip_section_centroid_is_the_middle_of_the_strip(plate):
+    """Above the middle hole of the plate (holes of radius 0.5 at x = -2, 0, 2 in a 6 x 2 x 0.4
+    box) the section across x is the strip y in [0.5, 1], z in [-0.2, 0.2]: centroid y = 0.75,
+    z = 0, wherever the point lies in the strip (on a plate the medial points do not say)."""
+    V, F = plate
+    hole, half_w = PLATE["hole_radius"], PLATE["size"][1] / 2
+    X = np.array([[0.0, 0.55, 0.15], [0.0, 0.95, -0.1]])
+    C, extent = section_centroids(V, F, X, np.tile([1.0, 0, 0], (2, 1)), 1.0)
+    assert np.isfinite(extent).all()
+    np.testing.assert_allclose(C, [[0, (hole + half_w) / 2, 0]] * 2, atol=2e-3)
+
+
+def test_no_centroid_where_the_loop_is_not_the_points_own(plate, bar):
+    V, F = plate
+    # in the middle hole: the plane cuts the strips above and below it, neither round the point
+    C, extent = section_centroids(V, F, [[0.0, 0.0, 0.0]], [[1.0, 0, 0]], 5.0)
+    assert extent[0] == np.inf and np.array_equal(C, [[0.0, 0.0, 0.0]])
+    # a loop reaching farther than `reach`: the bar's section has its corners 0.71 away
+    Vb, Fb = bar
+    C, extent = section_centroids(Vb, Fb, [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]],
+                                  [[1.0, 0, 0], [1.0, 0, 0]], [0.7, 0.72])
+    assert extent[0] == np.inf and extent[1] == pytest.approx(np.sqrt(0.5))
+
+
+def test_longest_edge_is_the_longest_of_every_face_side(bar):
+    V, F = bar
+    sides = [np.linalg.norm(V[F[:, a]] - V[F[:, b]], axis=1).max()
+             for a, b in ((0, 1), (1, 2), (2, 0))]
+    assert longest_edge(V, F) == max(sides)
+
+
+def test_polish_brings_a_displaced_chain_back_to_the_axis(bar):
+    """A chain along the bar with its joints pushed off the axis by 0.1-0.25 (alternately up
+    and down: a zig-zag) and its tips 0.3 off: two rounds take every joint, tips included,
+    to within 0.05 of the axis (radius 0.75: every section within REACH radii)."""
+    V, F = bar
+    L = BAR["size"][0]
+    x = np.linspace(-L / 2 + 0.3, L / 2 - 0.3, 9)
+    off = np.array([0.3, 0.15, -0.2, 0.25, -0.1, 0.2, -0.25, 0.1, 0.3])
+    J = np.column_stack([x, off, 0.5 * off, np.full(9, 0.75)])
+    bones = np.stack([np.arange(8), np.arange(1, 9)], 1)
+    X, moved = polish_chains(V, F, J, bones, InsideTest(V, F))
+    assert moved == 9
+    assert np.hypot(X[:, 1], X[:, 2]).max() < 0.05, np.hypot(X[:, 1], X[:, 2])
+    # along the axis a little (a tip moves in its plane, which the zig-zag tilts)
+    np.testing.assert_allclose(X[:, 0], x, atol=0.15)
+
+
+def test_polish_keeps_a_joint_whose_new_place_is_outside(bar):
+    V, F = bar
+    J = np.array([[-3.0, 0.2, 0, 0.5], [0.0, 0.3, 0, 0.5], [3.0, 0.2, 0, 0.5]])
+    bones = np.array([[0, 1], [1, 2]])
+    X, _ = polish_chains(V, F, J, bones, lambda P: np.zeros(len(P), bool))
+    np.testing.assert_array_equal(X, J[:, :3])
+
+
+def test_junctions_do_not_move(bar):
+    """A star of three chains meeting off the axis: the junction stays where it is."""
+    V, F = bar
+    J = np.array([[0.0, 0.3, 0.0, 0.5], [-2.0, 0.2, 0, 0.5], [-3.5, 0, 0, 0.5],
+                  [2.0, 0.2, 0, 0.5], [3.5, 0, 0, 0.5], [0.2, 0.4, 0.1, 0.3]])
+    bones = np.array([[0, 1], [1, 2], [0, 3], [3, 4], [0, 5]])
+    X, _ = polish_chains(V, F, J, bones, InsideTest(V, F))
+    np.testing.assert_array_equal(X[0], J[0, :3])
+
+
+def test_a_section_beyond_reach_and_fade_moves_nothing_and_the_step_fades_between(bar):
+    """The bar's section reaches 0.71 from its axis: radius 0.71 / (REACH + FADE) and smaller
+    leave a joint on the axis' side where it is, radius 0.71 / REACH moves it a full step."""
+    V, F = bar
+    inside = InsideTest(V, F)
+    bones = np.array([[0, 1], [1, 2]])
+
+    def moved(r):
+        J = np.array([[-2.0, 0, 0, r], [0.0, 0.1, 0, r], [2.0, 0, 0, r]])
+        X, _ = polish_chains(V, F, J, bones, inside, rounds=1, smooth=0.0)
+        return 0.1 - X[1, 1]
+
+    # the point is 0.1 off the axis: its loop reaches ~0.78 from it
+    ext = np.hypot(0.5, 0.6)
+    assert moved(0.99 * ext / (REACH + FADE)) == 0.0
+    assert moved(1.01 * ext / REACH) == pytest.approx(STEP * 0.1, abs=1e-9)
+    mid = moved(ext / (REACH + FADE / 2))
+    assert 0.2 * STEP * 0.1 < mid < 0.8 * STEP * 0.1
