@@ -36,7 +36,7 @@ from scipy.sparse.csgraph import connected_components
 
 from .mesh_graph import faces_around
 
-__all__ = ["section_centroids", "longest_edge", "polish_chains", "STEP", "ROUNDS", "REACH",
+__all__ = ["section_centroids", "vertex_edges", "polish_chains", "STEP", "ROUNDS", "REACH",
            "FADE", "TIP_REACH", "SMOOTH", "LEAF_STEP"]
 
 #: Fraction of the way to the centroid a joint moves per round.
@@ -57,7 +57,7 @@ SMOOTH = 0.3
 LEAF_STEP = 1.0
 
 
-def section_centroids(V, F, X, T, reach, *, face_of=None, edge=None):
+def section_centroids(V, F, X, T, reach, *, face_of=None, vertex_edge=None):
     """Area centroid of the cross-section loop round each point.
 
     Parameters
@@ -72,8 +72,9 @@ def section_centroids(V, F, X, T, reach, *, face_of=None, edge=None):
         A loop with a point farther than this from its X is not accepted.
     face_of : (indptr, faces), optional
         The faces around each vertex (CSR; built if None).
-    edge : float, optional
-        The mesh's longest edge (computed if None).
+    vertex_edge : (n,) float, optional
+        The longest side of the faces around each vertex (:func:`vertex_edges`; computed if
+        None).
     Returns
     -------
     C : (k, 3) float
@@ -106,9 +107,9 @@ def section_centroids(V, F, X, T, reach, *, face_of=None, edge=None):
         return C, extent
     if face_of is None:
         face_of = faces_around(F, n)
-    if edge is None:
-        edge = longest_edge(V, F)
-    vi, pi = _slab_vertices(V, X, T, reach, edge)
+    if vertex_edge is None:
+        vertex_edge = vertex_edges(V, F, face_of)
+    vi, pi = _slab_vertices(V, X, T, reach, vertex_edge)
     # the faces around them, once per point: every face the plane cuts near the point
     indptr, faces = face_of
     cnt = indptr[vi + 1] - indptr[vi]
@@ -181,25 +182,26 @@ def section_centroids(V, F, X, T, reach, *, face_of=None, edge=None):
     return C, extent
 
 
-def _slab_vertices(V, X, T, reach, edge):
-    """(vertex, point) pairs: the vertices within ``edge`` of each point's plane and within
-    ``reach + edge`` of the point (a cut face has a corner on each side of the plane, so one
-    within an edge's length of it; a loop within ``reach`` has its faces' corners within
-    ``reach + edge``).
+def _slab_vertices(V, X, T, reach, vertex_edge):
+    """(vertex, point) pairs: the vertices v within ``vertex_edge[v]`` of each point's plane
+    and within ``reach + vertex_edge[v]`` of the point. A face the plane cuts has a corner on
+    each side, so the corner nearer the plane lies within a side's length of it; and a loop
+    within ``reach`` of the point has such a corner within ``reach`` plus that length.
 
     The heights are screened in float32 with a margin for its rounding (one matrix-vector
     product per point: 4-8x faster than one (n, k) product and its 2-D ``nonzero``); the
     faces' heights are recomputed exactly afterwards."""
     V32 = V.astype(np.float32)
-    margin = edge + 1e-5 * float(np.abs(V).max(initial=0.0) + np.abs(X).max(initial=0.0))
+    tol = (vertex_edge + 1e-5 * float(np.abs(V).max(initial=0.0) + np.abs(X).max(initial=0.0)))
+    tol32 = tol.astype(np.float32)
     off = np.einsum("ij,ij->i", X, T)
     vs, ps = [], []
     for j in range(len(X)):
         s = V32 @ T[j].astype(np.float32)
         s -= np.float32(off[j])
-        v = np.flatnonzero(np.abs(s) <= margin)
+        v = np.flatnonzero(np.abs(s) <= tol32)
         d = V[v] - X[j]
-        v = v[np.einsum("ij,ij->i", d, d) <= (reach[j] + edge) ** 2]
+        v = v[np.einsum("ij,ij->i", d, d) <= (reach[j] + vertex_edge[v]) ** 2]
         vs.append(v)
         ps.append(np.full(len(v), j, np.int64))
     if not vs:
@@ -207,15 +209,30 @@ def _slab_vertices(V, X, T, reach, edge):
     return np.concatenate(vs), np.concatenate(ps)
 
 
-def longest_edge(V, F) -> float:
-    """The length of the mesh's longest edge."""
+def vertex_edges(V, F, face_of=None):
+    """(n,) the longest side of the faces around each vertex (0 for a vertex in no face).
+
+    Examples
+    --------
+    >>> vertex_edges(np.array([[0., 0, 0], [3, 0, 0], [0, 4, 0], [9, 9, 9]]),
+    ...              np.array([[0, 1, 2]])).tolist()
+    [5.0, 5.0, 5.0, 0.0]
+    """
     V = np.asarray(V, np.float64)
     F = np.asarray(F, np.int64).reshape(-1, 3)
-    m = 0.0
+    if face_of is None:
+        face_of = faces_around(F, len(V))
+    indptr, faces = face_of
+    side = np.zeros(len(F))
     for a, b in ((0, 1), (1, 2), (2, 0)):
         d = V[F[:, a]] - V[F[:, b]]
-        m = max(m, float(np.einsum("ij,ij->i", d, d).max(initial=0.0)))
-    return float(np.sqrt(m))
+        np.maximum(side, np.einsum("ij,ij->i", d, d), out=side)
+    side = np.sqrt(side)
+    out = np.zeros(len(V))
+    has = indptr[1:] > indptr[:-1]
+    if len(faces):
+        out[has] = np.maximum.reduceat(side[faces], indptr[:-1][has])
+    return out
 
 
 def _plane_frames(T):
@@ -229,7 +246,7 @@ def _plane_frames(T):
 
 
 def polish_chains(V, F, joints, bones, inside, *, rounds=ROUNDS, step=STEP, reach=REACH,
-                  smooth=SMOOTH, face_of=None, edge=None):
+                  smooth=SMOOTH, face_of=None):
     """Chain joints moved towards their cross-sections' centroids (see the module docstring).
 
     Parameters
@@ -239,9 +256,8 @@ def polish_chains(V, F, joints, bones, inside, *, rounds=ROUNDS, step=STEP, reac
     bones : (B, 2) int
     inside : callable (k, 3) -> (k,) bool
         The mesh's inside test: a joint whose new place is outside stays where it was.
-    face_of, edge : optional
-        The faces around each vertex (:func:`.mesh_graph.faces_around`) and the longest edge, if
-        at hand.
+    face_of : optional
+        The faces around each vertex (:func:`.mesh_graph.faces_around`), if at hand.
 
     Returns
     -------
@@ -258,7 +274,7 @@ def polish_chains(V, F, joints, bones, inside, *, rounds=ROUNDS, step=STEP, reac
     if not len(F):
         return X, 0
     face_of = faces_around(F, len(V)) if face_of is None else face_of
-    edge = longest_edge(V, F) if edge is None else edge
+    vertex_edge = vertex_edges(V, F, face_of)
     moved = 0
     moving, a, b, tip = _planes(bones, len(X))
     if not len(moving):
@@ -270,7 +286,7 @@ def polish_chains(V, F, joints, bones, inside, *, rounds=ROUNDS, step=STEP, reac
         r = J[moving, 3]
         rr = reach + np.where(tip, TIP_REACH, 0.0)
         C, extent = section_centroids(V, F, X[moving], T, (rr + FADE) * r, face_of=face_of,
-                                      edge=edge)
+                                      vertex_edge=vertex_edge)
         # full step for a section within `reach` radii, none beyond `reach + FADE`: a loop
         # near the limit (a limb's root) does not switch a joint's move on and off
         w = np.clip((rr + FADE) - extent / np.maximum(r, 1e-300), 0.0, FADE) / FADE

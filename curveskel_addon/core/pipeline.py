@@ -183,8 +183,6 @@ class SkeletonRun:
                            np.unique(np.concatenate(pairs), axis=0))
         st.areas = areas
         st._inside = self._inside
-        if comp_meta and all("longest_edge" in m for m in comp_meta):
-            st.longest_edge = max(m["longest_edge"] for m in comp_meta)
         st.key = np.where(np.isfinite(key), key, 0.0)
         st.record("initialise", sum(self.timings.get(k, 0.0) for k in
                                     ("pole", "contours", "reeb", "meb", "mapping")))
@@ -304,7 +302,7 @@ class SkeletonRun:
         st = self.state
         before = st.joints.copy()
         st.joints[:, :3], moved = polish_chains(st.V, st.F, st.joints, st.bones, st.inside,
-                                                face_of=st.faces_around, edge=st.longest_edge)
+                                                face_of=st.faces_around)
         if FOLD_GUARD:
             # positions only (crossings measured with the radii before): one radius fit after
             undo_new_folds(st.joints, st.bones, before, bbox_diagonal(st.V))

@@ -499,14 +499,12 @@ def first_approximation(V, F, *, spacing: float, seed: int, inside=None) -> Firs
 def _approximate(V, F, E, expected, spacing, seed, extra, timings, t0) -> FirstApproximation:
     """The first approximation with f over the edge graph, plus the ``extra`` paths if given."""
     n = len(V)
-    lengths = edge_lengths(V, E)
-    pole, f = find_pole(V, E, lengths, seed, extra=extra)
+    pole, f = find_pole(V, E, edge_lengths(V, E), seed, extra=extra)
     timings["pole"] = timings.get("pole", 0.0) + time.perf_counter() - t0
     diag = size_of(V)      # rotation-free size (the spacing's unit)
     f = np.where(np.isfinite(f), f, 0.0)
     maxf = float(f.max())
-    meta = {"pole": int(pole), "size": diag, "longest_edge": float(lengths.max(initial=0.0)),
-            "timings": timings, "expected_cycles": None,
+    meta = {"pole": int(pole), "size": diag, "timings": timings, "expected_cycles": None,
             "cycles": 0, "noise_caps_removed": 0, "refinements": 0, "interior_paths": False}
     if n < 3 or diag <= 0 or maxf <= 0:
         joints, bones = _single_bone(V, diag)

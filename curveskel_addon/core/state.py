@@ -110,7 +110,6 @@ class PipelineState:
     medial_points: int = 0          # surface points the medial balls shrank against
     key: np.ndarray | None = None   # (n,) numbering-free order of the vertices (geodesic f)
     areas: np.ndarray | None = None  # (n,) vertex areas, if the weights step computed them
-    longest_edge: float | None = None  # the working mesh's longest edge (from initialise)
     _inside: object = None
     _size: float | None = None
     _faces_around: tuple | None = None

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from curveskel_addon.core.cross_section import (FADE, REACH, STEP, longest_edge, polish_chains,
-                                                section_centroids)
+from curveskel_addon.core.cross_section import (FADE, REACH, STEP, polish_chains,
+                                                section_centroids, vertex_edges)
 from curveskel_addon.core.quality import InsideTest
 from tests.meshes import BAR, PLATE, box_bar, capsule, plate_with_holes
 
@@ -72,11 +72,14 @@ def test_no_centroid_where_the_loop_is_not_the_points_own(plate, bar):
     assert extent[0] == np.inf and extent[1] == pytest.approx(np.sqrt(0.5))
 
 
-def test_longest_edge_is_the_longest_of_every_face_side(bar):
+def test_vertex_edges_is_the_longest_side_of_the_faces_around_each_vertex(bar):
+    """Against a loop over the faces."""
     V, F = bar
-    sides = [np.linalg.norm(V[F[:, a]] - V[F[:, b]], axis=1).max()
-             for a, b in ((0, 1), (1, 2), (2, 0))]
-    assert longest_edge(V, F) == max(sides)
+    want = np.zeros(len(V))
+    for f in F:
+        side = max(np.linalg.norm(V[f[a]] - V[f[b]]) for a, b in ((0, 1), (1, 2), (2, 0)))
+        want[f] = np.maximum(want[f], side)
+    np.testing.assert_allclose(vertex_edges(V, F), want, rtol=1e-12)
 
 
 def test_polish_brings_a_displaced_chain_back_to_the_axis(bar):
