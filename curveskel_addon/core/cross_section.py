@@ -75,6 +75,7 @@ def section_centroids(V, F, X, T, reach, *, face_of=None, vertex_edge=None):
     vertex_edge : (n,) float, optional
         The longest side of the faces around each vertex (:func:`vertex_edges`; computed if
         None).
+
     Returns
     -------
     C : (k, 3) float
@@ -197,6 +198,8 @@ def _slab_vertices(V, X, T, reach, vertex_edge):
     off = np.einsum("ij,ij->i", X, T)
     vs, ps = [], []
     for j in range(len(X)):
+        if not T[j].any():                  # no plane (two neighbours at one place)
+            continue
         s = V32 @ T[j].astype(np.float32)
         s -= np.float32(off[j])
         v = np.flatnonzero(np.abs(s) <= tol32)
@@ -264,7 +267,7 @@ def polish_chains(V, F, joints, bones, inside, *, rounds=ROUNDS, step=STEP, reac
     X : (J, 3) float
         New positions (radii untouched).
     moved : int
-        Joints whose section was found in the last round.
+        Joints that moved in the last round (a closed section round them within reach).
     """
     from .centreline import smooth_chains
     J = np.asarray(joints, np.float64)
@@ -294,7 +297,11 @@ def polish_chains(V, F, joints, bones, inside, *, rounds=ROUNDS, step=STEP, reac
         Y = X.copy()
         Y[moving] += (np.where(tip, LEAF_STEP, step) * w)[:, None] * (C - X[moving])
         if smooth > 0:
-            Y = smooth_chains(Y, bones, smooth)
+            # a tip keeps its section's place: the smoothing would pull it along the chain (out
+            # into a capsule's cap)
+            Z = smooth_chains(Y, bones, smooth)
+            Z[moving[tip]] = Y[moving[tip]]
+            Y = Z
             Y[hub] = X[hub]
         stay = ~inside(Y)
         Y[stay] = X[stay]

@@ -295,9 +295,9 @@ class SkeletonRun:
         return self._finished
 
     def _polish(self) -> int:
-        """The polish stage: chain joints towards their cross-sections' centroids
-        (:func:`.cross_section.polish_chains`), radii refitted to the surface, joints moved into
-        a new fold or crossing put back. Returns the chain joints whose section was found."""
+        """The polish stage: chain joints and tips towards their cross-sections' centroids
+        (:func:`.cross_section.polish_chains`), joints moved into a new fold or crossing put
+        back, radii refitted to the surface. Returns the number of joints that moved."""
         from .quality import bbox_diagonal
         st = self.state
         before = st.joints.copy()
@@ -306,7 +306,11 @@ class SkeletonRun:
         if FOLD_GUARD:
             # positions only (crossings measured with the radii before): one radius fit after
             undo_new_folds(st.joints, st.bones, before, bbox_diagonal(st.V))
-        st.joints[:, 3], st.bone, st.t = fit_radii_surface(st.V, st.weights, st.joints, st.bones)
+        if SURFACE_RADII:
+            st.joints[:, 3], st.bone, st.t = fit_radii_surface(st.V, st.weights, st.joints,
+                                                               st.bones)
+        else:
+            st.remap()
         return moved
 
     def _mapping(self, joints, s: SolverState):
