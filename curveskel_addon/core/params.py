@@ -95,7 +95,7 @@ class SkeletonParams:
     centring: float = 3.0
     containment: float = 1.0
     simplify: float = 0.25
-    max_fit_points: int = 60000
+    max_fit_points: int = 30000
     min_component_area: float = 0.01
 
     def __post_init__(self):
