@@ -31,7 +31,7 @@ from typing import Callable, Iterator
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .centreline import centre_stage, fit_radii_surface, smooth_chains
+from .centreline import SURFACE_RADII_ROUNDS, centre_stage, fit_radii_surface, smooth_chains
 from .cross_section import polish_chains
 from .edit import contain_stage, edit_stage
 from .errors import CurveSkelError
@@ -274,8 +274,11 @@ class SkeletonRun:
                     # radii are fitted once, after
                     undo_new_folds(st.joints, st.bones, before_fit, bbox_diagonal(st.V))
                 if SURFACE_RADII:
+                    # with the polish to come these radii only gauge the sections' reach
+                    # (and its fold guard's crossings): least squares, no reweighting
                     st.joints[:, 3], st.bone, st.t = fit_radii_surface(
-                        st.V, st.weights, st.joints, st.bones)
+                        st.V, st.weights, st.joints, st.bones, rounds=0 if POLISH else
+                        SURFACE_RADII_ROUNDS)
             st.record("radii", time.perf_counter() - t0)
             t0 = time.perf_counter()
             with self._timed("contain"):
