@@ -655,8 +655,8 @@ mesh components / genus (✗ = mismatch). *seconds*: the method alone, from arra
 subprocess per mesh and method; with `--quality-repeat N` the fastest of N runs in it.
 
 Methods: `curveskel` = `SkeletonParams()`; `curveskel-paper` = `SkeletonParams.paper()`;
-`curveskel-initial` = `SkeletonParams(max_iterations=0)` (the first approximation, no solver
-step: shows what the optimisation adds or loses);
+`curveskel-initial` = `SkeletonParams(max_iterations=0)` (every stage but the fit of E: no
+solver step; shows what the fit adds or loses);
 `skeletor-wavefront` = `skeletor.pre.fix_mesh` + `by_wavefront(waves=1, step_size=1)`, radii from
 skeletor (mean distance of mapped vertices where it gives 0); `skeletor-clusters` = `fix_mesh` +
 `contract()` (defaults) + `by_vertex_clusters(sampling_dist=0.02 D)`, radii = mean distance of
