@@ -6,11 +6,13 @@ orientation in space, only on its surface.
 
 The paper picks the pole in three steps so that it lies at an extremity whatever the random
 start: a random vertex v1, the vertex v2 farthest from v1, the pole p farthest from v2. We keep
-the steps with two deliberate changes, both measured:
+the steps (three Dijkstra runs: v2 and p graph-geodesically farthest, then f from p) with these
+changes, each measured:
 
-* **v2 is the Euclidean-farthest vertex from v1.** It lies on the convex hull, hence at an
-  extremity, which is all step 2 is for, and it saves one of three Dijkstra runs (a third of
-  this stage: ~0.5 s of CPU on a 1M-vertex mesh). p is still graph-geodesically farthest.
+* **v1 is the vertex farthest from the centroid** at the default seed 0 (a random vertex for
+  other seeds): the same vertex whatever the numbering, position, scale or rotation (issue 12).
+  Taking the pole straight from that extreme vertex (one Dijkstra run less) was tried and not
+  kept: all of issue 10's targets on 3 meshes instead of 5 (horse inside 0.950).
 * **The farthest vertex is ill-conditioned near ties.** On a capsule every vertex of the far
   cap is almost equally far, and the graph metric's anisotropy picks one well off the tip; the
   contour lines around an off-tip pole are tilted, so the first joints lie off the axis with
