@@ -64,6 +64,9 @@ CROSSING_GUARD = True
 #: Last, chain joints move towards the centroids of the mesh's cross-sections through them
 #: (:mod:`.cross_section`), radii refitted.
 POLISH = True
+#: The final radii are refined on the silhouette (the union of round cones) against the surface
+#: (:mod:`.silhouette_radii`), after the nearest-bone fit.
+SILHOUETTE_RADII = True
 
 
 class SkeletonRun:
@@ -312,9 +315,26 @@ class SkeletonRun:
         if SURFACE_RADII:
             st.joints[:, 3], st.bone, st.t = fit_radii_surface(st.V, st.weights, st.joints,
                                                                st.bones)
+            if SILHOUETTE_RADII:
+                st.joints[:, 3] = self._silhouette_radii()
         else:
             st.remap()
         return moved
+
+    def _silhouette_radii(self) -> np.ndarray:
+        """The radii refined on the silhouette itself (:mod:`.silhouette_radii`): every vertex
+        with its area, or above ``3 * SAMPLES`` vertices an area-weighted draw of ``SAMPLES``."""
+        from .silhouette_radii import SAMPLES, fit_radii_silhouette
+        st = self.state
+        n = len(st.V)
+        if n > 3 * SAMPLES:
+            # drawn with probabilities by area from many more vertices: about an area-weighted
+            # sample, so equal weights (near n a draw without replacement takes nearly all)
+            idx = canonical_subset(st.key, SAMPLES, self.params.seed + 2, p=st.weights)
+            w = np.ones(len(idx))
+        else:
+            idx, w = np.arange(n), st.weights
+        return fit_radii_silhouette(st.V[idx], w, st.joints, st.bones)[0]
 
     def _mapping(self, joints, s: SolverState):
         """sigma of every working vertex: the solver's own when it fitted every vertex,
