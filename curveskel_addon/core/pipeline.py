@@ -326,17 +326,18 @@ class SkeletonRun:
 
     def _silhouette_radii(self) -> np.ndarray:
         """The radii refined on the silhouette itself (:mod:`.silhouette_radii`): every vertex
-        with its area, or above ``3 * SAMPLES`` vertices an area-weighted draw of ``SAMPLES``."""
+        with its area, or above ``SAMPLES`` vertices a uniform draw of them with their areas."""
         from .silhouette_radii import SAMPLES, fit_radii_silhouette
         st = self.state
         n = len(st.V)
-        if n > 3 * SAMPLES:
-            # drawn with probabilities by area from many more vertices: about an area-weighted
-            # sample, so equal weights (near n a draw without replacement takes nearly all)
-            idx = canonical_subset(st.key, SAMPLES, self.params.seed + 2, p=st.weights)
-            w = np.ones(len(idx))
+        if n > SAMPLES:
+            # a uniform draw, each vertex with its area: an unbiased estimate of the area-weighted
+            # sum whatever the share drawn (a draw with probabilities by area is not one when it
+            # takes most of the vertices)
+            idx = canonical_subset(st.key, SAMPLES, self.params.seed + 2)
         else:
-            idx, w = np.arange(n), st.weights
+            idx = np.arange(n)
+        w = st.weights[idx]
         return fit_radii_silhouette(st.V[idx], w, st.joints, st.bones)[0]
 
     def _mapping(self, joints, s: SolverState):
