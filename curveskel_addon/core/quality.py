@@ -1369,6 +1369,8 @@ def curve_measures(joints, bones=None, D=None, *, turn=ZIGZAG_DEGREES, near=FOLD
         crossings
             Number of :func:`crossing_pairs` divided by the number of bones (None without
             radii: joints given as (J, 3) or a reference curve).
+        pinches
+            Number of :func:`radius_pinches` (None without radii).
         length
             Sum of bone lengths / D.
         bones, degree2, leaves
@@ -1394,17 +1396,43 @@ def curve_measures(joints, bones=None, D=None, *, turn=ZIGZAG_DEGREES, near=FOLD
     deg = np.bincount(bones.ravel(), minlength=len(X))
     cross = (len(crossing_pairs(np.column_stack([X, r]), bones, D, far=far))
              if r is not None and len(r) == len(X) and D > 0 else None)
+    pinch = (len(radius_pinches(r, bones)) if r is not None and len(r) == len(X) else None)
     return {
         "zigzag": float((ang > turn).mean()) if len(ang) else 0.0,
         "turn_p90": float(np.percentile(ang, 90)) if len(ang) else 0.0,
         "folds": float(len(folds) / max(len(bones), 1)),
         "fold_pairs": int(len(folds)),
         "crossings": float(cross / max(len(bones), 1)) if cross is not None else None,
+        "pinches": pinch,
         "length": L / D if D > 0 else float("nan"),
         "bones": int(len(bones)),
         "degree2": int((deg == 2).sum()),
         "leaves": int((deg == 1).sum()),
     }
+
+
+#: A chain joint whose radius is below this fraction of both its neighbours' pinches the skin.
+PINCH_RATIO = 0.4
+
+
+def radius_pinches(r, bones, ratio=PINCH_RATIO):
+    """Chain joints (degree 2) whose radius is below ``ratio`` times both neighbours' radii: an
+    hourglass waist in the silhouette and in Blender's Skin modifier that no part of the shape
+    asks for (what a radius fit that the neighbours' balls make indifferent to a joint leaves).
+
+    Returns
+    -------
+    (k,) int
+
+    Examples
+    --------
+    >>> radius_pinches(np.array([1.0, 0.3, 1.0, 0.9]), np.array([[0, 1], [1, 2], [2, 3]])).tolist()
+    [1]
+    """
+    from .centreline import chain_neighbours
+    r = np.abs(np.asarray(r, np.float64))
+    chain, a, b = chain_neighbours(bones, len(r))
+    return chain[r[chain] < ratio * np.minimum(r[a], r[b])]
 
 
 def _radii_of(skeleton):

@@ -391,3 +391,16 @@ def test_crossings_count_bones_within_their_radius_far_along_the_skeleton():
     assert len(crossing_pairs(J, B, 200.0)) == 0
     # no radii, no crossings measure
     assert curve_measures(J[:, :3], B, D=10.0)["crossings"] is None
+
+
+def test_pinches_count_chain_joints_thinner_than_both_neighbours():
+    """A waist of radius 0.3 between radii 1 and 0.9 is a pinch (< 0.4 of both); 0.5 is not; a
+    tip is never one; a curve without radii has no pinch count."""
+    from curveskel_addon.core.quality import curve_measures
+    X = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0], [4, 0, 0]])
+    bones = np.array([[0, 1], [1, 2], [2, 3], [3, 4]])
+    J = np.column_stack([X, [0.1, 1.0, 0.3, 0.9, 0.05]])
+    assert curve_measures(J, bones, D=4.0)["pinches"] == 1
+    J[2, 3] = 0.5
+    assert curve_measures(J, bones, D=4.0)["pinches"] == 0
+    assert curve_measures(X, bones, D=4.0)["pinches"] is None

@@ -7,7 +7,7 @@ import numpy as np
 
 from curveskel_addon.core.centreline import fit_radii_surface
 from curveskel_addon.core.quality import silhouette_sdf
-from curveskel_addon.core.silhouette_radii import fit_radii_silhouette
+from curveskel_addon.core.silhouette_radii import BAND, fit_radii_silhouette
 from curveskel_addon.core.vertex_area import vertex_areas
 from tests.meshes import capsule, tube_along
 
@@ -59,3 +59,13 @@ def test_no_samples_leave_the_radii():
     r, hist = fit_radii_silhouette(np.zeros((0, 3)), np.zeros(0), J, np.array([[0, 1]]))
     np.testing.assert_array_equal(r, [0.5, 0.7])
     assert hist == []
+
+
+def test_radii_stay_within_the_band_of_their_start():
+    """Started at 3x the capsule's radius the fit cannot go below BAND[0] x 3: the band keeps a
+    joint the neighbours' balls cover from collapsing into a pinch of the skin."""
+    V, F = capsule(radius=1.0, length=6.0, n_around=32, n_body=40)
+    X, bones = _axis(0.0, 6.0, 7)
+    r, _ = fit_radii_silhouette(V, vertex_areas(V, F), np.column_stack([X, np.full(7, 3.0)]),
+                                bones)
+    np.testing.assert_allclose(r, BAND[0] * 3.0, rtol=1e-12)
