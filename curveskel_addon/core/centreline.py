@@ -323,14 +323,13 @@ def _signed_depth(tree, inside, V=None, F=None, k: int = 8, ids=None, face_of=No
     from .mesh_graph import faces_around
     from .quality import point_triangle_distance
 
-    faces_of = [] if face_of is None else [face_of[1], face_of[0]]
+    csr = [face_of]                 # the faces around each vertex, built on first use
 
     def around(v):
         """(point, face) pairs: every face holding one of the vertices ``v`` (p, k)."""
-        if not faces_of:            # the faces around each vertex (CSR), built on first use
-            starts, face = faces_around(F, len(V))
-            faces_of.extend([face, starts])
-        face, starts = faces_of
+        if csr[0] is None:
+            csr[0] = faces_around(F, len(V))
+        starts, face = csr[0]
         lo, cnt = starts[v.ravel()], np.diff(starts)[v.ravel()]
         pi = np.repeat(np.repeat(np.arange(len(v)), v.shape[1]), cnt)
         fi = face[np.repeat(lo, cnt) + np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)]

@@ -35,6 +35,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .mesh_graph import faces_around
+from .quality import orthonormal_frame
 
 __all__ = ["section_centroids", "vertex_edges", "polish_chains", "STEP", "ROUNDS", "REACH",
            "FADE", "TIP_REACH", "SMOOTH", "LEAF_STEP"]
@@ -139,7 +140,7 @@ def section_centroids(V, F, X, T, reach, *, face_of=None, vertex_edge=None):
         # one key per (cut edge, point): the loops of different points never join
         key[hit, slot[hit]] = (np.minimum(va, vb) * n + np.maximum(va, vb)) * k + pi[hit]
         slot[hit] += 1
-    E1, E2 = _plane_frames(T)
+    E1, E2 = orthonormal_frame(T)
     e1, e2 = E1[pi], E2[pi]
     rel = P - X[pi][:, None, :]
     p = np.stack([np.einsum("fd,fd->f", rel[:, 0], e1), np.einsum("fd,fd->f", rel[:, 0], e2)], 1)
@@ -236,16 +237,6 @@ def vertex_edges(V, F, face_of=None):
     if len(faces):
         out[has] = np.maximum.reduceat(side[faces], indptr[:-1][has])
     return out
-
-
-def _plane_frames(T):
-    """Two unit vectors spanning the plane normal to each row of T (k, 3)."""
-    A = np.zeros_like(T)
-    A[np.abs(T[:, 0]) < 0.9, 0] = 1.0
-    A[np.abs(T[:, 0]) >= 0.9, 1] = 1.0
-    E1 = np.cross(T, A)
-    E1 /= np.maximum(np.linalg.norm(E1, axis=1, keepdims=True), 1e-300)
-    return E1, np.cross(T, E1)
 
 
 def polish_chains(V, F, joints, bones, inside, *, rounds=ROUNDS, step=STEP, reach=REACH,

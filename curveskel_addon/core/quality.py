@@ -163,13 +163,18 @@ def sd_round_cone(p, a, b, r1, r2):
     return d
 
 
-def _primitives(joints, bones):
-    """(a, b, r1, r2) of every silhouette primitive: one per bone, one ball per bone-less joint."""
-    joints = np.asarray(joints, dtype=np.float64).reshape(-1, 4)
+def primitive_joints(n_joints, bones):
+    """(i, j): the end joints of every silhouette primitive, one per bone, then one ball
+    (i == j) per bone-less joint."""
     bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
-    lonely = np.setdiff1d(np.arange(len(joints)), bones.ravel())
-    i = np.concatenate([bones[:, 0], lonely])
-    j = np.concatenate([bones[:, 1], lonely])
+    lonely = np.setdiff1d(np.arange(n_joints), bones.ravel())
+    return np.concatenate([bones[:, 0], lonely]), np.concatenate([bones[:, 1], lonely])
+
+
+def _primitives(joints, bones):
+    """(a, b, r1, r2) of every silhouette primitive (:func:`primitive_joints`)."""
+    joints = np.asarray(joints, dtype=np.float64).reshape(-1, 4)
+    i, j = primitive_joints(len(joints), bones)
     r = np.abs(joints[:, 3])
     return joints[i, :3], joints[j, :3], r[i], r[j]
 
@@ -448,11 +453,11 @@ def _unit_vectors(n, rng):
     return x / np.maximum(np.linalg.norm(x, axis=1, keepdims=True), 1e-300)
 
 
-def _orthonormal_frame(u):
-    """Two unit vectors (e1, e2) orthogonal to each unit row of u."""
+def orthonormal_frame(u):
+    """Two unit vectors (e1, e2) orthogonal to each unit row of u (zero for a zero row)."""
     ref = np.where((np.abs(u[:, 0]) < 0.9)[:, None], np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
     e1 = np.cross(u, ref)
-    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e1 /= np.maximum(np.linalg.norm(e1, axis=1, keepdims=True), 1e-300)
     return e1, np.cross(u, e1)
 
 
@@ -498,7 +503,7 @@ def sample_silhouette_boundary(joints, bones, n, rng, *, tol=1e-7):
     bs = which[~on_sphere] - len(r)
     if bs.size:
         u = ba[bs] / L[bs, None]
-        e1, e2 = _orthonormal_frame(u)
+        e1, e2 = orthonormal_frame(u)
         ang = rng.random(bs.size) * 2 * np.pi
         radial = np.cos(ang)[:, None] * e1 + np.sin(ang)[:, None] * e2
         nrm = cos[bs, None] * radial + sin[bs, None] * u        # outward normal of the frustum

@@ -22,7 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from .quality import sd_round_cone
+from .quality import primitive_joints, sd_round_cone
 
 __all__ = ["fit_radii_silhouette", "ITERATIONS", "CANDIDATES", "SAMPLES", "FLOOR", "BAND"]
 
@@ -38,13 +38,6 @@ FLOOR = 0.1
 #: Above 3x this many vertices the pipeline fits with an area-weighted draw of this many (held
 #: out on armadillo and horse, the same surface-to-silhouette distance as with 10,000).
 SAMPLES = 5000
-
-
-def _cones(joints, bones):
-    """Joint indices (i, j) of every primitive: one per bone, one ball per bone-less joint."""
-    bones = np.asarray(bones, np.int64).reshape(-1, 2)
-    lonely = np.setdiff1d(np.arange(len(joints)), bones.ravel())
-    return np.concatenate([bones[:, 0], lonely]), np.concatenate([bones[:, 1], lonely])
 
 
 def fit_radii_silhouette(P, w, joints, bones, *, iterations=ITERATIONS, smooth=0.01,
@@ -81,12 +74,12 @@ def fit_radii_silhouette(P, w, joints, bones, *, iterations=ITERATIONS, smooth=0
     # within a band around the starting radii: where the neighbours' balls cover a joint the
     # silhouette does not care about its radius, and the fit would pinch the skin there (45
     # chain joints under 0.4x both neighbours' radii over the ten shared meshes, 4 with the band)
-    lo = np.maximum(BAND[0] * r, 1e-6 * (float(np.median(r[r > 0])) if np.any(r > 0) else 1.0))
-    hi = np.maximum(BAND[1] * r, lo)
-    ii, jj = _cones(J, bones)
-    a, b = J[ii, :3], J[jj, :3]
     pos = r[r > 0]
     scale = float(np.median(pos)) if pos.size else 1.0
+    lo = np.maximum(BAND[0] * r, 1e-6 * scale)
+    hi = np.maximum(BAND[1] * r, lo)
+    ii, jj = primitive_joints(len(J), bones)
+    a, b = J[ii, :3], J[jj, :3]
     # each sample against the cones that can be nearest to it: of the 4k nearest by centre, the
     # k with the smallest lower bound |p - centre| - (half length + radius); fixed for the fit
     centres = (a + b) / 2
