@@ -131,13 +131,17 @@ def sd_round_cone(p, a, b, r1, r2):
     >>> float(sd_round_cone(np.array([0., 2, 0]), np.zeros(3), np.array([0., 0, 1]), 1.0, 1.0))
     1.0
     """
+    return sd_round_cone_radii(round_cone_geometry(p, a, b), r1, r2)
+
+
+def round_cone_geometry(p, a, b):
+    """The radius-free part of :func:`sd_round_cone` for points ``p`` against axes ``a-b``:
+    computed once where only the radii change (a radius fit evaluates the same point-cone
+    pairs a dozen times). Pass it to :func:`sd_round_cone_radii`; ``take`` rows of it with
+    :func:`take_round_cone_geometry`."""
     p, a, b = (np.asarray(x, dtype=np.float64) for x in (p, a, b))
-    r1 = np.asarray(r1, dtype=np.float64)
-    r2 = np.asarray(r2, dtype=np.float64)
     ba = b - a
     l2 = np.einsum("...i,...i->...", ba, ba)
-    rr = r1 - r2
-    a2 = l2 - rr * rr
     pa = p - a
     y = np.einsum("...i,...i->...", pa, ba)
     z = y - l2
@@ -147,19 +151,46 @@ def sd_round_cone(p, a, b, r1, r2):
         x2 = np.einsum("...i,...i->...", q, q)
         y2 = y * y * l2
         z2 = z * z * l2
+        # the end balls' distances before their radii: sqrt(...) / l2
+        sb = np.sqrt(x2 + z2) * il2
+        sa = np.sqrt(x2 + y2) * il2
+    # p, a, b: for the contained-ball case (one ball inside the other), rare
+    return {"l2": l2, "y": y, "il2": il2, "x2": x2, "y2": y2, "z2": z2, "sz": np.sign(z),
+            "sy": np.sign(y), "sb": sb, "sa": sa, "p": p, "a": a, "b": b}
+
+
+def take_round_cone_geometry(g, idx):
+    """Rows ``idx`` (along the first axis) of a :func:`round_cone_geometry`."""
+    shape = np.shape(g["l2"])
+    out = {k: np.broadcast_to(v, shape)[idx] for k, v in g.items() if k not in "pab"}
+    out.update({k: np.broadcast_to(g[k], shape + (3,))[idx] for k in "pab"})
+    return out
+
+
+def sd_round_cone_radii(g, r1, r2):
+    """:func:`sd_round_cone` from its :func:`round_cone_geometry` and the radii."""
+    r1 = np.asarray(r1, dtype=np.float64)
+    r2 = np.asarray(r2, dtype=np.float64)
+    l2, y, il2, x2 = g["l2"], g["y"], g["il2"], g["x2"]
+    rr = r1 - r2
+    a2 = l2 - rr * rr
+    with np.errstate(divide="ignore", invalid="ignore"):
         k = np.sign(rr) * rr * rr * x2
-        d_b = np.sqrt(x2 + z2) * il2 - r2
-        d_a = np.sqrt(x2 + y2) * il2 - r1
+        d_b = g["sb"] - r2
+        d_a = g["sa"] - r1
         d_side = (np.sqrt(np.maximum(x2 * a2 * il2, 0.0)) + y * rr) * il2 - r1
-        d = np.where(np.sign(z) * a2 * z2 > k, d_b, np.where(np.sign(y) * a2 * y2 < k, d_a, d_side))
+        d = np.where(g["sz"] * a2 * g["z2"] > k, d_b, np.where(g["sy"] * a2 * g["y2"] < k, d_a, d_side))
     # One ball contains the other (or a == b): the larger ball.
     degenerate = a2 <= 0
     if np.any(degenerate):
-        big_at_a = r1 >= r2
-        centre = np.where(big_at_a[..., None], a, b)
-        rad = np.maximum(r1, r2)
-        d_ball = np.linalg.norm(p - centre, axis=-1) - rad
-        d = np.where(degenerate, d_ball, d)
+        # only where it applies (a few pairs; the whole array took half of a radius fit)
+        at = np.nonzero(degenerate)
+        shape = degenerate.shape
+        p, a, b = (np.broadcast_to(g[key], shape + (3,))[at] for key in "pab")
+        R1, R2 = np.broadcast_to(r1, shape)[at], np.broadcast_to(r2, shape)[at]
+        centre = np.where((R1 >= R2)[..., None], a, b)
+        d = np.array(np.broadcast_to(d, shape))
+        d[at] = np.linalg.norm(p - centre, axis=-1) - np.maximum(R1, R2)
     return d
 
 

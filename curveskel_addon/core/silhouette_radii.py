@@ -22,7 +22,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from .quality import primitive_joints, sd_round_cone
+from .quality import (primitive_joints, round_cone_geometry, sd_round_cone_radii,
+                      take_round_cone_geometry)
 
 __all__ = ["fit_radii_silhouette", "ITERATIONS", "CANDIDATES", "SAMPLES", "FLOOR", "BAND"]
 
@@ -92,25 +93,27 @@ def fit_radii_silhouette(P, w, joints, bones, *, iterations=ITERATIONS, smooth=0
     near = np.take_along_axis(near, keep, axis=1)
     pi = np.repeat(np.arange(len(P)), k)
     pj = near.ravel()
-    Pp, ap, bp = P[pi], a[pj], b[pj]
+    # the point-cone geometry does not change with the radii: once for the whole fit
+    geom = round_cone_geometry(P[pi], a[pj], b[pj])
     rows2 = np.r_[np.arange(len(P)), np.arange(len(P))]
     rows = np.arange(len(P))
 
     def union(radii):
-        v = sd_round_cone(Pp, ap, bp, radii[ii[pj]], radii[jj[pj]]).reshape(len(P), k)
+        v = sd_round_cone_radii(geom, radii[ii[pj]], radii[jj[pj]]).reshape(len(P), k)
         best = np.argmin(v, axis=1)
-        return v[rows, best], near[rows, best]
+        return v[rows, best], near[rows, best], rows * k + best
 
     def cost(sv):
         return float(np.sum(w * np.abs(sv)) / max(float(w.sum()), 1e-300))
 
-    s, c = union(r)
+    s, c, at = union(r)
     history = [cost(s)]
     for it in range(iterations):
         ci, cj = ii[c], jj[c]
         d = 1e-4 * scale
-        g1 = (sd_round_cone(P, a[c], b[c], r[ci] + d, r[cj]) - s) / d
-        g2 = (sd_round_cone(P, a[c], b[c], r[ci], r[cj] + d) - s) / d
+        gc = take_round_cone_geometry(geom, at)        # each sample's nearest cone
+        g1 = (sd_round_cone_radii(gc, r[ci] + d, r[cj]) - s) / d
+        g2 = (sd_round_cone_radii(gc, r[ci], r[cj] + d) - s) / d
         lone = ci == cj
         g1 = np.where(lone, g1 + g2, g1)
         g2 = np.where(lone, 0.0, g2)
@@ -131,12 +134,12 @@ def fit_radii_silhouette(P, w, joints, bones, *, iterations=ITERATIONS, smooth=0
         # converged fit from taking steps that rounding alone decides (a mesh scaled by 1e6)
         for _ in range(5):
             trial = np.clip(r + step, lo, hi)
-            s_t, c_t = union(trial)
+            s_t, c_t, at_t = union(trial)
             if cost(s_t) < history[-1] * (1.0 - 1e-6):
                 break
             step *= 0.5
         else:
             break
-        r, s, c = trial, s_t, c_t
+        r, s, c, at = trial, s_t, c_t, at_t
         history.append(cost(s))
     return r, history
