@@ -161,7 +161,7 @@ def round_cone_geometry(p, a, b):
 
 def take_round_cone_geometry(g, idx):
     """Rows ``idx`` (along the first axis) of a :func:`round_cone_geometry`."""
-    shape = np.shape(g["l2"])
+    shape = np.broadcast_shapes(*(np.shape(v) for k, v in g.items() if k not in "pab"))
     out = {k: np.broadcast_to(v, shape)[idx] for k, v in g.items() if k not in "pab"}
     out.update({k: np.broadcast_to(g[k], shape + (3,))[idx] for k in "pab"})
     return out
@@ -184,13 +184,15 @@ def sd_round_cone_radii(g, r1, r2):
     degenerate = a2 <= 0
     if np.any(degenerate):
         # only where it applies (a few pairs; the whole array took half of a radius fit)
-        at = np.nonzero(degenerate)
-        shape = degenerate.shape
-        p, a, b = (np.broadcast_to(g[key], shape + (3,))[at] for key in "pab")
-        R1, R2 = np.broadcast_to(r1, shape)[at], np.broadcast_to(r2, shape)[at]
-        centre = np.where((R1 >= R2)[..., None], a, b)
-        d = np.array(np.broadcast_to(d, shape))
+        shape = np.broadcast_shapes(np.shape(d), degenerate.shape)
+        at = np.flatnonzero(np.broadcast_to(degenerate, shape))
+        flat = lambda x, *tail: np.broadcast_to(x, shape + tail).reshape((-1,) + tail)[at]
+        p, a, b = (flat(g[key], 3) for key in "pab")
+        R1, R2 = flat(r1), flat(r2)
+        centre = np.where((R1 >= R2)[:, None], a, b)
+        d = np.array(np.broadcast_to(d, shape)).reshape(-1)
         d[at] = np.linalg.norm(p - centre, axis=-1) - np.maximum(R1, R2)
+        d = d.reshape(shape)
     return d
 
 

@@ -74,6 +74,33 @@ def test_sd_round_cone_contained_ball_is_larger_ball():
     assert np.allclose(sd_round_cone(P, b, a, 0.5, 1.0), np.linalg.norm(P, axis=1) - 1.0)
 
 
+def test_round_cone_geometry_reused_with_new_radii_matches_direct():
+    # the radius fit computes the point-cone geometry once and evaluates it with many radii,
+    # some pairs degenerate (one ball inside the other), under broadcasting and row takes
+    from curveskel_addon.core.quality import (round_cone_geometry, sd_round_cone_radii,
+                                              take_round_cone_geometry)
+    rng = np.random.default_rng(4)
+    P = rng.uniform(-2, 2, size=(50, 3))
+    a = rng.uniform(-1, 1, size=(6, 3))
+    b = a + rng.uniform(-0.5, 0.5, size=(6, 3))
+    g = round_cone_geometry(P[:, None], a[None], b[None])
+    for r1, r2 in [(np.full(6, 0.3), np.full(6, 0.2)), (np.full(6, 2.0), np.full(6, 0.1))]:
+        # the second: every ball at a contains the one at b (the larger ball alone)
+        got = sd_round_cone_radii(g, r1[None], r2[None])
+        want = np.array([[sd_round_cone(p, a[j], b[j], r1[j], r2[j]) for j in range(6)] for p in P])
+        assert np.allclose(got, want, rtol=0, atol=1e-12)
+    degenerate = np.linalg.norm(b - a, axis=1) <= 2.0 - 0.1
+    assert degenerate.all()
+    r1 = np.where(np.arange(6) % 2 == 0, 2.0, 0.3)          # half the pairs contained balls
+    rows = (np.arange(50), np.arange(50) % 6)
+    gt = take_round_cone_geometry(g, rows)
+    got = sd_round_cone_radii(gt, r1[rows[1]], 0.1)
+    want = np.array([sd_round_cone(P[i], a[j], b[j], r1[j], 0.1) for i, j in zip(*rows)])
+    assert np.allclose(got, want, rtol=0, atol=1e-12)
+    big = r1[rows[1]] == 2.0
+    assert np.allclose(got[big], np.linalg.norm(P[big] - a[rows[1][big]], axis=1) - 2.0)
+
+
 def test_silhouette_sdf_is_min_over_bones():
     sk = ring_skeleton(n=40)
     rng = np.random.default_rng(2)
