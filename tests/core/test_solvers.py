@@ -313,3 +313,21 @@ def test_solvers_with_refit_beat_fixed_mapping(solver):
     refit = solve(moved, solver=solver, max_iterations=300, refit_mapping=True)
     assert refit.energy < 0.1 * fixed.energy
     assert np.any(refit.bone != moved.bone)
+
+
+def test_lm_steps_turn_with_the_problem():
+    """Rotating the points and joints rotates every LM iterate: the damping is the same in any
+    orientation of the axes. Marquardt's diag(J^T J) of a joint's position block is not (it
+    changes with the axes), and damping by it made a rotated 3holes take another first step
+    (the skeleton 1.6e-3 D apart); each joint's position entries now share their mean."""
+    from scipy.spatial.transform import Rotation
+    pr, _ = cylinder_problem(n=1500, perturb=0.3, seed=3)
+    R = Rotation.from_rotvec([0.7, -1.1, 0.4]).as_matrix()
+    turned = FitProblem(pr.points @ R.T, pr.weights, np.c_[pr.joints[:, :3] @ R.T, pr.joints[:, 3]],
+                        pr.bones, pr.bone, pr.t)
+    a = [s.joints.copy() for s in solve_steps(pr, solver="lm", max_iterations=6, tolerance=1e-9)]
+    b = [s.joints.copy() for s in solve_steps(turned, solver="lm", max_iterations=6, tolerance=1e-9)]
+    assert len(a) == len(b) == 7
+    for x, y in zip(a, b):
+        assert np.abs(x[:, :3] - y[:, :3] @ R).max() < 1e-9
+        assert np.abs(x[:, 3] - y[:, 3]).max() < 1e-9

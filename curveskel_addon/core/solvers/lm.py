@@ -638,8 +638,20 @@ def _nonnegative_radii(pr, joints, h, c, lam, new, E, reg=None):
 
 
 def _damping_scale(H) -> np.ndarray:
-    """Marquardt's scaling diag(J^T J), floored so unobserved unknowns stay regular."""
+    """Marquardt's scaling diag(J^T J), floored so unobserved unknowns stay regular; the unknowns
+    are (x, y, z, r) per joint and a joint's three position entries share their mean (a third of
+    the trace of its 3x3 block).
+
+    Why shared: diag(J^T J) of a position block depends on the orientation of the axes, so the
+    damped step did too; a rotated mesh took another first step (3holes rotated: the same E0 to
+    5e-15, the first step's E 3.6e-5 apart, the skeleton 1.6e-3 D apart; issue 12). The trace is
+    the same in any orientation, and a joint is damped alike in every direction.
+    """
     diag = H.diagonal()
+    if diag.size % 4 == 0:
+        d4 = diag.reshape(-1, 4).copy()
+        d4[:, :3] = d4[:, :3].mean(axis=1, keepdims=True)
+        diag = d4.ravel()
     dmax = float(diag.max()) if diag.size else 0.0
     return np.maximum(diag, 1e-12 * dmax if dmax > 0 else 1.0)
 
