@@ -35,6 +35,7 @@ from .centreline import SURFACE_RADII_ROUNDS, centre_stage, fit_radii_surface, s
 from .cross_section import polish_chains
 from .edit import contain_stage, edit_stage
 from .errors import CurveSkelError
+from .junctions import onto_trunks
 from .mapping import closest_on_bones
 from .mesh_graph import components
 from .mesh_input import clean_mesh
@@ -64,6 +65,8 @@ CROSSING_GUARD = True
 #: Last, chain joints move towards the centroids of the mesh's cross-sections through them
 #: (:mod:`.cross_section`), radii refitted.
 POLISH = True
+#: ... and junctions move onto the straight line of their trunk (:mod:`.junctions`).
+TRUNK_JUNCTIONS = True
 #: The final radii are refined on the silhouette (the union of round cones) against the surface
 #: (:mod:`.silhouette_radii`), after the nearest-bone fit.
 SILHOUETTE_RADII = True
@@ -302,13 +305,21 @@ class SkeletonRun:
 
     def _polish(self) -> int:
         """The polish stage: chain joints and tips towards their cross-sections' centroids
-        (:func:`.cross_section.polish_chains`), joints moved into a new fold or crossing put
-        back, radii refitted to the surface. Returns the number of joints that moved."""
+        (:func:`.cross_section.polish_chains`), junctions onto their trunks
+        (:func:`.junctions.onto_trunks`), joints moved into a new fold or crossing put back,
+        radii refitted to the surface. Returns the number of chain joints that moved."""
         from .quality import bbox_diagonal
         st = self.state
         before = st.joints.copy()
-        st.joints[:, :3], moved = polish_chains(st.V, st.F, st.joints, st.bones, st.inside,
-                                                face_of=st.faces_around)
+        X, moved = polish_chains(st.V, st.F, st.joints, st.bones, st.inside,
+                                 face_of=st.faces_around)
+        if TRUNK_JUNCTIONS:
+            # (a junction whose trunk line leaves the mesh stays where it was)
+            Y = onto_trunks(X, st.joints[:, 3], st.bones)
+            out = ~st.inside(Y)
+            Y[out] = X[out]
+            X = Y
+        st.joints[:, :3] = X
         if FOLD_GUARD:
             # positions only (crossings measured with the radii before): one radius fit after
             undo_new_folds(st.joints, st.bones, before, bbox_diagonal(st.V))

@@ -404,3 +404,21 @@ def test_no_part_holds_two_bones_side_by_side(shared_meshes, name):
     assert len(crossing_pairs(sk.joints, sk.bones, D)) == 0
     m = curve_measures(sk.joints, sk.bones, D)
     assert m["folds"] == 0 and m["zigzag"] <= 0.15
+
+
+@pytest.mark.parametrize("name,to_ref,length", [("spot.obj", 0.011, 1.25),
+                                                ("armadillo.obj", 0.014, 1.25),
+                                                ("elephant.obj", 0.029, 1.25)])
+def test_limbs_branch_off_a_straight_body(shared_meshes, name, to_ref, length):
+    """A junction sits on the line of its body's chains (core/junctions.py): spot's spine dipped
+    to its hind legs' junction (to_ref 0.0116 D), armadillo's spine ran diagonally between its
+    two shoulders (0.0152 D), elephant's hips kinked (length 1.26x the reference's). Measured
+    when written: 0.0101, 0.0131, length 1.21."""
+    from curveskel_addon.core.mesh_io import read_mesh
+    from curveskel_addon.core.quality import shape_measures
+    V, F = read_mesh(shared_meshes / name)
+    sk = skeletonize(V, F, SkeletonParams())
+    ref = shared_meshes.parent / "reference" / (name.split(".")[0] + ".json")
+    d = shape_measures(V, F, sk, str(ref))
+    assert d["to_ref_mean"] <= to_ref, d
+    assert d["length_ratio"] <= length, d
