@@ -20,8 +20,8 @@ limb's root, or a neighbouring part): the step fades from full at ``REACH`` radi
 
 Planar sections have one weakness: where the plane nearly touches a saddle (between two
 fingers), a tiny tilt joins or splits loops and the centroid jumps. The fade bounds how far such
-a joint can go (armadillo jittered by 1e-9 D: one joint next to a finger tip moves 0.01 D
-differently; issue 12).
+a joint can go (armadillo jittered by 1e-9 D: one joint next to a finger tip moved 0.01 D
+differently at commit 1010aee, where the polish started from curves 2e-4 D apart; issue 12).
 
 Examples
 --------
