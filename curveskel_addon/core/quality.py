@@ -89,7 +89,8 @@ from .errors import CurveSkelError
 from .mesh_graph import adjacency
 from .vertex_area import vertex_areas
 
-__all__ = ["quality", "sd_round_cone", "silhouette_sdf", "point_triangle_distance",
+__all__ = ["quality", "sd_round_cone", "round_cone_geometry", "sd_round_cone_radii",
+           "take_round_cone_geometry", "silhouette_sdf", "point_triangle_distance",
            "mesh_distance", "winding_number", "sample_surface", "sample_silhouette_boundary", "inside_mesh", "InsideTest",
            "bone_points", "closest_mapping", "energy_measures", "skeleton_topology",
            "mesh_topology", "bbox_diagonal", "curve_arrays", "segment_points", "curve_points",
@@ -161,9 +162,10 @@ def round_cone_geometry(p, a, b):
 
 def take_round_cone_geometry(g, idx):
     """Rows ``idx`` (along the first axis) of a :func:`round_cone_geometry`."""
-    shape = np.broadcast_shapes(*(np.shape(v) for k, v in g.items() if k not in "pab"))
-    out = {k: np.broadcast_to(v, shape)[idx] for k, v in g.items() if k not in "pab"}
-    out.update({k: np.broadcast_to(g[k], shape + (3,))[idx] for k in "pab"})
+    points = ("p", "a", "b")                 # (..., 3); the rest are scalars per pair
+    shape = np.broadcast_shapes(*(np.shape(v) for k, v in g.items() if k not in points))
+    out = {k: np.broadcast_to(v, shape)[idx] for k, v in g.items() if k not in points}
+    out.update({k: np.broadcast_to(g[k], shape + (3,))[idx] for k in points})
     return out
 
 
@@ -186,8 +188,10 @@ def sd_round_cone_radii(g, r1, r2):
         # only where it applies (a few pairs; the whole array took half of a radius fit)
         shape = np.broadcast_shapes(np.shape(d), degenerate.shape)
         at = np.flatnonzero(np.broadcast_to(degenerate, shape))
-        flat = lambda x, *tail: np.broadcast_to(x, shape + tail).reshape((-1,) + tail)[at]
-        p, a, b = (flat(g[key], 3) for key in "pab")
+        def flat(x, *tail):
+            return np.broadcast_to(x, shape + tail).reshape((-1,) + tail)[at]
+
+        p, a, b = (flat(g[key], 3) for key in ("p", "a", "b"))
         R1, R2 = flat(r1), flat(r2)
         centre = np.where((R1 >= R2)[:, None], a, b)
         d = np.array(np.broadcast_to(d, shape)).reshape(-1)
