@@ -41,8 +41,8 @@ from scipy.sparse.linalg import spsolve
 from .mapping import closest_on_bones
 
 __all__ = ["split_long_bones", "region_candidates", "fit_centreline", "fit_radii", "medial_samples",
-           "chain_smoothness_rows", "chain_neighbours", "centre_stage", "fit_radii_surface",
-           "smooth_chains"]
+           "chain_smoothness_rows", "chain_neighbours", "joint_adjacency", "centre_stage",
+           "fit_radii_surface", "smooth_chains"]
 
 
 def split_long_bones(joints, bones, bone_region, h, only=None):
@@ -121,6 +121,18 @@ def _hat_matrix(bones, bone, t, J, sw):
     return sp.csr_matrix((vals, (rows, cols)), shape=(n, J))
 
 
+def joint_adjacency(n_joints, bones):
+    """The skeleton's neighbours, CSR: (indptr, neighbour joint, bone id); joint j's
+    neighbours are ``nbr[indptr[j]:indptr[j + 1]]`` (in bone order)."""
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    ends = np.r_[bones[:, 0], bones[:, 1]]
+    other = np.r_[bones[:, 1], bones[:, 0]]
+    bid = np.r_[np.arange(len(bones)), np.arange(len(bones))]
+    o = np.argsort(ends, kind="stable")
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(ends, minlength=n_joints))])
+    return indptr, other[o], bid[o]
+
+
 def chain_neighbours(bones, J):
     """The joints of degree 2 and their two neighbours, without a Python loop.
 
@@ -128,14 +140,9 @@ def chain_neighbours(bones, J):
     -------
     chain, a, b : (c,) int
     """
-    bones = np.asarray(bones, np.int64).reshape(-1, 2)
-    deg = np.bincount(bones.ravel(), minlength=J)
-    chain = np.flatnonzero(deg == 2)
-    ends = np.r_[bones[:, 0], bones[:, 1]]
-    other = np.r_[bones[:, 1], bones[:, 0]]
-    o = np.argsort(ends, kind="stable")
-    starts = np.concatenate([[0], np.cumsum(deg)])
-    return chain, other[o][starts[chain]], other[o][starts[chain] + 1]
+    indptr, nbr, _ = joint_adjacency(J, bones)
+    chain = np.flatnonzero(np.diff(indptr) == 2)
+    return chain, nbr[indptr[chain]], nbr[indptr[chain] + 1]
 
 
 def chain_smoothness_rows(bones, J):

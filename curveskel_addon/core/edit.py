@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .centreline import joint_adjacency
 from .quality import _point_segment_distance, skeleton_topology
 
 __all__ = ["chains", "merge_chains", "zip_parallel_chains", "collapse_short_bones", "prune_leaves", "compact", "chain_turns", "remove_sharp_turns", "edit_stage", "contain_stage",
@@ -62,17 +63,6 @@ EDIT_CONSTANTS = {
 }
 
 
-def _adjacency(n_joints, bones):
-    """CSR neighbours: (indptr, nbr joint, bone id)."""
-    bones = np.asarray(bones, np.int64).reshape(-1, 2)
-    ends = np.r_[bones[:, 0], bones[:, 1]]
-    other = np.r_[bones[:, 1], bones[:, 0]]
-    bid = np.r_[np.arange(len(bones)), np.arange(len(bones))]
-    o = np.argsort(ends, kind="stable")
-    indptr = np.concatenate([[0], np.cumsum(np.bincount(ends, minlength=n_joints))])
-    return indptr, other[o], bid[o]
-
-
 def chains(n_joints, bones):
     """Maximal paths whose inner joints have degree 2.
 
@@ -82,7 +72,7 @@ def chains(n_joints, bones):
     between them. A cycle of degree-2 joints only starts and ends at its lowest joint.
     """
     bones = np.asarray(bones, np.int64).reshape(-1, 2)
-    indptr, nbr, bid = _adjacency(n_joints, bones)
+    indptr, nbr, bid = joint_adjacency(n_joints, bones)
     deg = np.diff(indptr)
     used = np.zeros(len(bones), bool)
     out = []
@@ -335,7 +325,7 @@ def chain_turns(joints, bones):
     """
     bones = np.asarray(bones, np.int64).reshape(-1, 2)
     J = len(joints)
-    indptr, nbr, _ = _adjacency(J, bones)
+    indptr, nbr, _ = joint_adjacency(J, bones)
     deg = np.diff(indptr)
     chain = np.flatnonzero(deg == 2)
     a, b = nbr[indptr[chain]], nbr[indptr[chain] + 1]

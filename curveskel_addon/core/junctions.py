@@ -27,6 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .centreline import joint_adjacency
+
 __all__ = ["onto_trunks", "TRUNK_POWER"]
 
 #: The pairs' weights: (the smaller radius of the pair) ** TRUNK_POWER.
@@ -57,12 +59,8 @@ def onto_trunks(X, r, bones, *, power=TRUNK_POWER):
     Y = X.copy()
     if not len(bones):
         return Y
-    ends = np.r_[bones[:, 0], bones[:, 1]]
-    other = np.r_[bones[:, 1], bones[:, 0]]
-    o = np.argsort(ends, kind="stable")
-    ends, other = ends[o], other[o]
-    deg = np.bincount(ends, minlength=len(X))
-    start = np.cumsum(deg) - deg
+    start, other, _ = joint_adjacency(len(X), bones)
+    deg = np.diff(start)
     scale = float(r.max()) if len(r) and r.max() > 0 else 1.0
     for d in np.unique(deg[deg >= 3]):
         s = np.flatnonzero(deg == d)                          # junctions of this degree
