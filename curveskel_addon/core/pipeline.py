@@ -33,7 +33,7 @@ from scipy.spatial import cKDTree
 
 from .centreline import SURFACE_RADII_ROUNDS, centre_stage, fit_radii_surface, smooth_chains
 from .cross_section import polish_chains
-from .edit import contain_stage, edit_stage
+from .edit import contain_stage, edit_stage, undo_new_outside
 from .errors import CurveSkelError
 from .junctions import onto_trunks
 from .mapping import closest_on_bones
@@ -67,6 +67,9 @@ CROSSING_GUARD = True
 POLISH = True
 #: ... and junctions move onto the straight line of their trunk (:mod:`.junctions`).
 TRUNK_JUNCTIONS = True
+#: ... and the polish's moves that take a bone further out of the mesh are put back
+#: (:func:`.edit.undo_new_outside`).
+INSIDE_GUARD = True
 #: The final radii are refined on the silhouette (the union of round cones) against the surface
 #: (:mod:`.silhouette_radii`), after the nearest-bone fit.
 SILHOUETTE_RADII = True
@@ -306,7 +309,8 @@ class SkeletonRun:
     def _polish(self) -> int:
         """The polish stage: chain joints and tips towards their cross-sections' centroids
         (:func:`.cross_section.polish_chains`), junctions onto their trunks
-        (:func:`.junctions.onto_trunks`), joints moved into a new fold or crossing put back,
+        (:func:`.junctions.onto_trunks`), joints moved into a new fold or crossing, or taking a
+        bone further out of the mesh, put back,
         radii refitted to the surface. Returns the number of chain joints that moved."""
         from .quality import bbox_diagonal
         st = self.state
@@ -323,6 +327,9 @@ class SkeletonRun:
         if FOLD_GUARD:
             # positions only (crossings measured with the radii before): one radius fit after
             undo_new_folds(st.joints, st.bones, before, bbox_diagonal(st.V))
+        if INSIDE_GUARD:
+            # (each move was checked for its joint only: a bone can cut a corner out)
+            undo_new_outside(st.joints, st.bones, before, st.inside)
         if SURFACE_RADII:
             # one reweighting is start enough for the silhouette's fit (the five of the
             # nearest-bone fit alone: the same mean recon, 0.73-0.75x over 1-5)

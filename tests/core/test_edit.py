@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from curveskel_addon.core.edit import (chain_turns, chains, collapse_short_bones, merge_chains,
-                                       prune_leaves, remove_sharp_turns, zip_parallel_chains)
+                                       prune_leaves, remove_sharp_turns, undo_new_outside,
+                                       zip_parallel_chains)
 from curveskel_addon.core.quality import crossing_pairs
 
 
@@ -185,6 +186,49 @@ def test_remove_sharp_turns_keeps_an_elbow_and_a_wide_zigzag():
     X = _joints([(0, 0), (1, 0), (0.5, 0.8), (3, 0.8)])
     J, _, _ = remove_sharp_turns(X, _path(4), X[:, 3])
     assert len(J) == 4
+
+
+def _outside_hole(P):
+    """Inside test of the half-plane y >= 0 (in z = 0's neighbourhood) with a round hole of
+    radius 0.2 at (0.5, 0): the material round a hole, as at rocker-arm's ring."""
+    P = np.asarray(P, float)
+    return (P[:, 1] >= -1e-9) & (np.hypot(P[:, 0] - 0.5, P[:, 1]) > 0.2)
+
+
+def test_remove_sharp_turns_keeps_a_corner_whose_chord_crosses_a_hole():
+    # a corner turning by 90 deg, bones of 0.71 < radius 1, the chord within tol of the corner:
+    # a zig-zag to remove -- unless the chord (0, 0)-(1, 0) runs through the hole at (0.5, 0),
+    # where 4 of its 10 samples lie outside while the corner's two bones have none
+    X = _joints([(0, 0), (0.5, 0.5), (1, 0)], r=1.0)
+    J, B, _ = remove_sharp_turns(X, _path(3), X[:, 3])
+    assert len(J) == 2                                         # no inside test: removed
+    J, B, m = remove_sharp_turns(X, _path(3), X[:, 3], inside=_outside_hole)
+    np.testing.assert_array_equal(J, X)
+    assert B.tolist() == _path(3).tolist() and m.tolist() == [0, 1]
+    # the same corner over solid material (no hole) is still removed with the inside test
+    J, _, _ = remove_sharp_turns(X, _path(3), X[:, 3], inside=lambda P: np.asarray(P)[:, 1] >= -1e-9)
+    assert len(J) == 2
+
+
+# -- undo_new_outside --------------------------------------------------------------------------------
+def test_undo_new_outside_puts_back_a_bone_moved_across_a_hole():
+    # a chain above the hole; joints 1 and 2 moved down beside it, each inside (0.25 from its
+    # centre), but the bone between them now runs 0.05 from the centre: both go back; joint 0
+    # moved up stays (its bone stays inside)
+    before = _joints([(0, 0.5), (0.25, 0.5), (0.75, 0.5), (1, 0.5)])
+    J = before.copy()
+    J[0, 1] = 0.6
+    J[1, :2] = (0.25, 0.05)
+    J[2, :2] = (0.75, 0.05)
+    assert _outside_hole(J[:, :3]).all()
+    back = undo_new_outside(J, _path(4), before, _outside_hole)
+    assert back.tolist() == [False, True, True, False]
+    np.testing.assert_array_equal(J[1:], before[1:])
+    assert J[0, 1] == 0.6
+    # nothing outside: nothing put back
+    J = before.copy()
+    J[1, 1] = 0.3
+    assert not undo_new_outside(J, _path(4), before, _outside_hole).any() and J[1, 1] == 0.3
 
 
 # -- prune_leaves ------------------------------------------------------------------------------------
