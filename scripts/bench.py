@@ -93,8 +93,9 @@ def shape_marks(r: dict) -> dict:
 # ---------------------------------------------------------------------------------------------
 # helpers shared by parent and workers
 # ---------------------------------------------------------------------------------------------
-def load_mesh(spec: str):
-    """(V, F, seconds) of a shared mesh file name or a procedural mesh name."""
+def load_mesh(spec: str, folder: Path | None = None):
+    """(V, F, seconds) of a shared mesh file name (or one in ``folder``) or a procedural mesh
+    name."""
     import numpy as np
 
     t0 = time.perf_counter()
@@ -106,7 +107,8 @@ def load_mesh(spec: str):
     else:
         import trimesh
 
-        m = trimesh.load(str(SHARED / spec), process=False, force="mesh", maintain_order=True)
+        m = trimesh.load(str((folder or SHARED) / spec), process=False, force="mesh",
+                         maintain_order=True)
         V, F = np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64)
     return V, F, time.perf_counter() - t0
 
@@ -880,10 +882,16 @@ def _view_axes(X):
     return [(hor, vert), (h2, v2)]
 
 
-def plot_skeletons(specs, method: str = "curveskel") -> str | None:
+def plot_skeletons(specs, method: str = "curveskel", folder: Path | None = None,
+                   ref_dir: Path | None = None, sk_dir: Path | None = None,
+                   path: Path | None = None, label: str | None = None) -> str | None:
     """docs/figures/skeletons.png: each mesh (faint surface samples), its reference curve
     (orange) and the method's skeleton from ``.bench/skeletons/<method>/`` (blue, joints as
-    dots), two orthographic views per mesh, measures in the title."""
+    dots), two orthographic views per mesh, measures in the title.
+
+    ``folder``, ``ref_dir``, ``sk_dir``, ``path`` and ``label`` replace the shared meshes, their
+    references, the skeletons' folder, the picture and the skeleton's legend (the held-out
+    meshes: ``scripts/shape_table.py --heldout --figure``)."""
     try:
         import matplotlib
         matplotlib.use("Agg")
@@ -894,10 +902,12 @@ def plot_skeletons(specs, method: str = "curveskel") -> str | None:
 
     from curveskel_addon.core.quality import curve_arrays, sample_surface, shape_measures
 
+    ref_dir = Path(ref_dir) if ref_dir else REFERENCE
+    sk_dir = Path(sk_dir) if sk_dir else OUT / "skeletons" / method
     items = []
     for spec in specs:
-        sk_path = OUT / "skeletons" / method / f"{stem(spec)}.json"
-        ref_path = REFERENCE / f"{stem(spec)}.json"
+        sk_path = sk_dir / f"{stem(spec)}.json"
+        ref_path = ref_dir / f"{stem(spec)}.json"
         if sk_path.is_file() and ref_path.is_file():
             items.append((spec, sk_path, ref_path))
     if not items:
@@ -909,7 +919,7 @@ def plot_skeletons(specs, method: str = "curveskel") -> str | None:
     for ax in axes.ravel():
         ax.set_axis_off()
     for n, (spec, sk_path, ref_path) in enumerate(items):
-        V, F, _ = load_mesh(spec)
+        V, F, _ = load_mesh(spec, folder)
         X, B = curve_arrays(sk_path)
         Xr, Br = curve_arrays(ref_path)
         m = shape_measures(V, F, (X, B), (Xr, Br))
@@ -933,14 +943,16 @@ def plot_skeletons(specs, method: str = "curveskel") -> str | None:
     from matplotlib.lines import Line2D
 
     fig.legend([Line2D([], [], color="#1f4e9c", lw=2), Line2D([], [], color="#f28e2b", lw=2)],
-               [f"{method} (default parameters)", "reference curve skeleton (shared/reference)"],
+               [label or f"{method} (default parameters)", "reference curve skeleton ("
+                + ("shared/reference" if ref_dir == REFERENCE else os.path.relpath(ref_dir, ROOT))
+                + ")"],
                loc="upper center", ncol=2, fontsize=10, frameon=False)
     fig.tight_layout(rect=(0, 0, 1, 0.975))
-    path = ROOT / "docs" / "figures" / "skeletons.png"
+    path = Path(path) if path else ROOT / "docs" / "figures" / "skeletons.png"
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=90)
     plt.close(fig)
-    return str(path.relative_to(ROOT))
+    return os.path.relpath(path, ROOT) if path.resolve().is_relative_to(ROOT) else str(path)
 
 
 # -- the whole command against skeletor's (issue 11) ------------------------------------------------

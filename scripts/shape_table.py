@@ -8,6 +8,7 @@ Usage (from the repository root):
     .venv/bin/python scripts/shape_table.py --paper --meshes horse spot --json out.json
     .venv/bin/python scripts/shape_table.py --ref-only     # the reference curves themselves
     .venv/bin/python scripts/shape_table.py --save-dir out/sk   # keep the skeletons (JSON)
+    .venv/bin/python scripts/shape_table.py --heldout --save-dir out/sk --figure out/heldout.png
 
 ``--set NAME=VALUE`` overrides a field of ``SkeletonParams`` (value parsed to the type of the
 field's default; booleans as 1/0/true/false). Meshes run in a process pool (``--jobs``, default
@@ -18,6 +19,14 @@ below 0.4 of both neighbours', ``quality.radius_pinches``), length ratio, to_ref
 ``../shared/reference/<mesh>.json``) and the seconds of ``skeletonize`` alone. A ``*`` marks a
 value that misses its issue-10 target. The summary counts the meshes meeting each target, the
 median to_ref and the mean recon ratio.
+
+``--heldout [DIR]``: the same table on the meshes of DIR (default ``tests/data/heldout``: meshes not in
+shared/, for issue 10's "also checked on meshes not in shared/"), against ``DIR/reference`` (CGAL
+mean-curvature-flow skeletons made as shared/reference's, see the folder's README.md). CGAL's
+recon figure of such a mesh is that of CGAL's skeleton (the reference, or ``reference/cgal/`` where
+the reference is another method's, as for the octopus in shared/), from the same samples: the
+shared meshes' figures in ``bench.CGAL`` are those of CGAL's skeletons too. ``--figure PNG`` (with
+``--save-dir``) draws the skeletons over the references like docs/figures/skeletons.png.
 
 Speed: recon is ``|silhouette_sdf|`` of ``--samples`` (default 5000) area-uniform surface samples
 (the same estimator as ``quality()``'s recon_mean, which the bench runs with 20000 samples: a
@@ -45,6 +54,15 @@ from bench import CGAL, REAL, REFERENCE, SHAPE_TARGETS, load_mesh, shape_marks, 
 #: Largest first: the pool then finishes about together.
 ORDER = ["armadillo.obj", "horse.off", "fertility.off", "octopus.off", "rocker-arm.obj",
          "3holes.off", "elephant.obj", "homer.obj", "spot.obj", "hand.off"]
+#: Meshes not in shared/ (``--heldout``) and their reference curves in ``HELDOUT / "reference"``.
+HELDOUT = ROOT / "tests" / "data" / "heldout"
+
+
+def heldout_order(folder) -> list[str]:
+    """The held-out meshes' file names in ``folder``, largest file first."""
+    files = [p for p in Path(folder).iterdir()
+             if p.suffix.lower() in (".obj", ".off", ".ply", ".stl")]
+    return [p.name for p in sorted(files, key=lambda p: (-p.stat().st_size, p.name))]
 
 
 def parse_sets(sets: list[str], paper: bool) -> dict:
@@ -78,8 +96,10 @@ def parse_sets(sets: list[str], paper: bool) -> dict:
 
 
 def measure(spec: str, overrides: dict, paper: bool, n_samples: int, ref_only: bool,
-            save_dir: str | None = None) -> dict:
-    """One mesh: skeletonize (or take the reference), fast volumetric measures, shape measures."""
+            save_dir: str | None = None, heldout: str | None = None) -> dict:
+    """One mesh: skeletonize (or take the reference), fast volumetric measures, shape measures.
+    ``heldout``: a folder of held-out meshes (``--heldout``): the mesh from there, against its
+    reference in the folder's ``reference/``."""
     import numpy as np
 
     from curveskel_addon.core import SkeletonParams, skeletonize
@@ -89,14 +109,15 @@ def measure(spec: str, overrides: dict, paper: bool, n_samples: int, ref_only: b
 
     name = stem(spec)
     try:
-        V, F, _ = load_mesh(spec)
-        ref = curve_arrays(REFERENCE / f"{name}.json")
+        V, F, _ = load_mesh(spec, Path(heldout) if heldout else None)
+        ref_path = (Path(heldout) / "reference" if heldout else REFERENCE) / f"{name}.json"
+        ref = curve_arrays(ref_path)
+        with open(ref_path) as fh:
+            ref_r = np.asarray(json.load(fh)["joints"], float)[:, 3]
         t0 = time.perf_counter()
         if ref_only:
             X, B = ref
-            with open(REFERENCE / f"{name}.json") as fh:
-                r = np.asarray(json.load(fh)["joints"], float)[:, 3]
-            joints = np.column_stack([X, r])
+            joints = np.column_stack([X, ref_r])
             bones = B
             meta = {}
         else:
@@ -120,6 +141,13 @@ def measure(spec: str, overrides: dict, paper: bool, n_samples: int, ref_only: b
                     and st["skeleton_cycles"] == mt["mesh_genus"])
         sm = shape_measures(V, F, (joints, bones), ref, D=D)
         cg = CGAL.get(name)
+        if heldout:  # CGAL's recon: of its skeleton (the reference, or reference/cgal/<mesh>.json
+            cg_path = Path(heldout) / "reference" / "cgal" / f"{name}.json"  # if another's)
+            with open(cg_path if cg_path.is_file() else ref_path) as fh:
+                cg_sk = json.load(fh)
+            cg_J = np.asarray(cg_sk["joints"], float)
+            cg_B = np.asarray(cg_sk["bones"], np.int64).reshape(-1, 2)
+            cg = (float(np.mean(np.abs(silhouette_sdf(S, cg_J, cg_B)))) / D,)
         res = {"mesh": name, "seconds": sec, "joints": int(len(joints)), "bones": int(len(bones)),
                "topology_match": topo, "cycles": st["skeleton_cycles"], "genus": mt["mesh_genus"],
                "components": st["skeleton_components"], "mesh_components": mt["mesh_components"],
@@ -221,17 +249,25 @@ def main(argv=None) -> None:
     ap.add_argument("--samples", type=int, default=5000, help="surface samples for recon")
     ap.add_argument("--json", metavar="OUT", help="also write the rows (and settings) as JSON")
     ap.add_argument("--save-dir", metavar="DIR", help="also save each skeleton as DIR/<mesh>.json")
+    ap.add_argument("--heldout", nargs="?", const=str(HELDOUT), metavar="DIR",
+                    help="meshes not in shared/ and their references (DIR/reference/); default "
+                         "DIR: tests/data/heldout")
+    ap.add_argument("--figure", metavar="PNG",
+                    help="with --save-dir: draw the skeletons over the references (two views each)")
     ap.add_argument("--sweep", metavar="NAME=V1,V2,...",
                     help="one summary row per value of one parameter (the other --set overrides "
                          "apply to every row), as a markdown table for docs/benchmarks.md")
     args = ap.parse_args(argv)
+    if args.figure and (not args.save_dir or args.ref_only):
+        raise SystemExit("--figure draws the skeletons saved by --save-dir (not with --ref-only)")
     if args.sweep:
         return sweep(args)
 
     overrides = parse_sets(args.set, args.paper)
     specs = _specs(args)
-    label = ("reference curves" if args.ref_only else
-             ("paper" if args.paper else "default") + (" " + " ".join(args.set) if args.set else ""))
+    setting = ("reference curves" if args.ref_only else ("paper" if args.paper else "default")
+               + (" " + " ".join(args.set) if args.set else ""))
+    label = setting + (f"; held-out meshes ({args.heldout})" if args.heldout else "")
     print(f"# shape_table: {label}; recon from {args.samples} samples; * = misses target", flush=True)
     print(header(), flush=True)
     t0 = time.perf_counter()
@@ -242,32 +278,42 @@ def main(argv=None) -> None:
         Path(args.json).write_text(json.dumps({"settings": label, "overrides": overrides,
                                                "paper": args.paper, "ref_only": args.ref_only,
                                                "samples": args.samples, "targets": SHAPE_TARGETS,
-                                               "results": results}, indent=1, default=str))
+                                               "heldout": args.heldout, "results": results},
+                                              indent=1, default=str))
         print(f"wrote {args.json}")
+    if args.figure:
+        from bench import plot_skeletons
+
+        fig = plot_skeletons(sorted(specs) if args.heldout else specs,
+                             folder=Path(args.heldout) if args.heldout else None,
+                             ref_dir=Path(args.heldout) / "reference" if args.heldout else None,
+                             sk_dir=args.save_dir, path=args.figure, label=f"curveskel ({setting})")
+        print(f"wrote {fig}" if fig else "no figure (matplotlib missing, or no skeleton saved)")
 
 
 def _specs(args) -> list[str]:
+    order = heldout_order(args.heldout) if args.heldout else ORDER
     if not args.meshes:
-        return ORDER
+        return order
     want = {m.rsplit(".", 1)[0] if "." in m and m.rsplit(".", 1)[1] in ("obj", "off", "ply", "stl")
             else m for m in args.meshes}
-    specs = [s for s in ORDER if stem(s) in want]
+    specs = [s for s in order if stem(s) in want]
     unknown = want - {stem(s) for s in specs}
     if unknown:
         raise SystemExit(f"unknown mesh(es): {', '.join(sorted(unknown))}; known: "
-                         + ", ".join(stem(s) for s in REAL))
+                         + ", ".join(stem(s) for s in (sorted(order) if args.heldout else REAL)))
     return specs
 
 
 def run(specs: list[str], overrides: dict, args, echo: bool = False) -> list[dict]:
-    """Measure the meshes in a process pool; rows in REAL's order."""
+    """Measure the meshes in a process pool; rows in REAL's order (the held-out ones: by name)."""
     env = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
     for k, v in env.items():         # one BLAS thread per worker: the pool already fills the cores
         os.environ.setdefault(k, v)
     results = []
     with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
         futs = {pool.submit(measure, s, overrides, args.paper, args.samples, args.ref_only,
-                            args.save_dir): s
+                            args.save_dir, args.heldout): s
                 for s in specs}
         for f in as_completed(futs):
             r = f.result()
@@ -276,7 +322,7 @@ def run(specs: list[str], overrides: dict, args, echo: bool = False) -> list[dic
                 print(fmt_row(r), flush=True)
             if "error" in r:
                 print(r["traceback"], file=sys.stderr)
-    order = {stem(s): i for i, s in enumerate(REAL)}
+    order = {stem(s): i for i, s in enumerate(sorted(specs) if args.heldout else REAL)}
     results.sort(key=lambda r: order.get(r["mesh"], 99))
     return results
 
