@@ -16,7 +16,9 @@ field's default; booleans as 1/0/true/false). Meshes run in a process pool (``--
 figures), zig-zag, folds, crossings (no target: bone pairs within 0.3 of their radius of
 each other and far apart along the skeleton, per bone), pinches (no target: chain joints whose radius is
 below 0.4 of both neighbours', ``quality.radius_pinches``), length ratio, to_ref, from_ref (all / D, against
-``../shared/reference/<mesh>.json``) and the seconds of ``skeletonize`` alone. A ``*`` marks a
+``../shared/reference/<mesh>.json``), mirror (no target: on a mirror-symmetric mesh, how far the
+skeleton is from its own mirror image, / D, ``quality.mirror_asymmetry``) and the seconds of
+``skeletonize`` alone. A ``*`` marks a
 value that misses its issue-10 target. The summary counts the meshes meeting each target, the
 median to_ref and the mean recon ratio.
 
@@ -165,7 +167,7 @@ def measure(spec: str, overrides: dict, paper: bool, n_samples: int, ref_only: b
 
 COLS = [("mesh", 10), ("J", 4), ("topo", 5), ("inside", 6), ("recon", 7), ("×CGAL", 6),
         ("zigzag", 6), ("folds", 6), ("cross", 5), ("pinch", 5), ("len×", 5), ("to_ref", 6),
-        ("from", 6), ("s", 6)]
+        ("from", 6), ("mirror", 6), ("s", 6)]
 
 
 def fmt_row(r: dict) -> str:
@@ -181,7 +183,9 @@ def fmt_row(r: dict) -> str:
              f"{r['crossings']:5.3f}" if r.get("crossings") is not None else "    –",
              f"{r['pinches']:5d}" if r.get("pinches") is not None else "    –",
              f"{r['length_ratio']:4.2f}{star('length')}", f"{r['to_ref_mean']:.4f}{star('to_ref')}",
-             f"{r['from_ref_mean']:.4f}{star('from_ref')}", f"{r['seconds']:6.2f}"]
+             f"{r['from_ref_mean']:.4f}{star('from_ref')}",
+             f"{r['mirror_asymmetry']:.4f}" if r.get("mirror_asymmetry") is not None else "     –",
+             f"{r['seconds']:6.2f}"]
     return " ".join(cells)
 
 

@@ -499,7 +499,8 @@ def first_approximation(V, F, *, spacing: float, seed: int, inside=None) -> Firs
 def _approximate(V, F, E, expected, spacing, seed, extra, timings, t0) -> FirstApproximation:
     """The first approximation with f over the edge graph, plus the ``extra`` paths if given."""
     n = len(V)
-    pole, f = find_pole(V, E, edge_lengths(V, E), seed, extra=extra)
+    # (shapes with handles: the default pole, see pole.py)
+    pole, f = find_pole(V, E, edge_lengths(V, E), seed, extra=extra, mirror=expected == 0)
     timings["pole"] = timings.get("pole", 0.0) + time.perf_counter() - t0
     diag = size_of(V)      # rotation-free size (the spacing's unit)
     f = np.where(np.isfinite(f), f, 0.0)

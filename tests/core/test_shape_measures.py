@@ -404,3 +404,16 @@ def test_pinches_count_chain_joints_thinner_than_both_neighbours():
     J[2, 3] = 0.5
     assert curve_measures(J, bones, D=4.0)["pinches"] == 0
     assert curve_measures(X, bones, D=4.0)["pinches"] is None
+
+
+def test_mirror_asymmetry_of_a_skeleton_and_its_reflection():
+    """Points symmetric across x = 0 only; a bone on the plane is its own mirror image (0), a bone
+    1 to its side lies 2 from its image everywhere (2 / D both ways); a box symmetric across three
+    planes has no one mirror plane (None)."""
+    from curveskel_addon.core.quality import mirror_asymmetry
+    V = np.array([[x, y, z] for x in (-2., 2) for y in (0., 1, 3) for z in (0., 1, 5)])
+    bone = np.array([[0, 1]])
+    assert mirror_asymmetry(V, (np.array([[0., 0, 0], [0, 3, 0]]), bone), 10.0) == pytest.approx(0, abs=1e-12)
+    assert mirror_asymmetry(V, (np.array([[1., 0, 0], [1, 3, 0]]), bone), 10.0) == pytest.approx(0.2)
+    box = np.array([[x, y, z] for x in (-1., 1) for y in (-2., 2) for z in (-3., 3)])
+    assert mirror_asymmetry(box, (np.array([[1., 0, 0], [1, 3, 0]]), bone), 10.0) is None
