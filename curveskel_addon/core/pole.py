@@ -35,7 +35,7 @@ changes, each measured:
   spine at its shoulder while its neck and left arm split off one contour at the left shoulder
   (the neck drawn diagonally to the head), the elephant's front legs joined the body 25 units
   apart, spot's skeleton was 0.018 D from its own mirror image. When the shape is its own mirror
-  image across exactly one principal plane through its centroid (:func:`mirror_plane`: the
+  image across exactly one principal plane through its centroid (:func:`bilateral_plane`: the
   reflected points lie within ``MIRROR_TOL`` of the shape, in units of its rms radius; bilateral
   symmetry, as of animals and characters, not a bar's or a sphere's), f is the distance
   to the nearer of the pole and its twin (the vertex nearest the pole's reflection; one Dijkstra
@@ -56,8 +56,8 @@ from scipy.sparse.csgraph import dijkstra
 from .errors import CurveSkelError
 from .mesh_graph import adjacency, edge_csr
 
-__all__ = ["find_pole", "geodesic_from", "edge_graph", "graph_with", "mirror_plane", "POLE_SLACK",
-           "MIRROR_TOL"]
+__all__ = ["find_pole", "geodesic_from", "edge_graph", "graph_with", "bilateral_plane",
+           "principal_mirrors", "POLE_SLACK", "MIRROR_TOL"]
 
 #: Candidates for the pole: graph distance from v2 at least (1 - POLE_SLACK) * max.
 POLE_SLACK = 0.1
@@ -224,35 +224,41 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int,
     return pole, geodesic_from(A, pole)[:n]
 
 
-def mirror_plane(V, n_points: int = MIRROR_POINTS):
-    """The principal plane through the centroid across which the shape is most nearly its own
-    mirror image.
+def bilateral_plane(V, n_points: int = MIRROR_POINTS):
+    """The shape's mirror plane if it has exactly one among its principal planes, else None.
+
+    A principal plane through the centroid is a mirror when the reflected points lie within
+    ``MIRROR_TOL`` (mean distance to the nearest point, in rms radii) of the shape. Exactly one:
+    bilateral symmetry (animals, characters); a bar, a capsule or a sphere has several. Depends
+    only on the shape, not its pose or numbering (the method uses it). Not the plane the Blender
+    layer names ``.L``/``.R`` bones by (:func:`.rig_layout.mirror_plane`, which prefers the
+    object's local X axis, as Blender's X-Axis Mirror does).
 
     Returns
     -------
-    centre : (3,) float
-    normal : (3,) float, unit
-    score : float
-        Mean distance from the reflected points to the nearest point, over the rms distance of
-        the points from the centroid (0 for an exact mirror image; whatever the scale).
+    (centre (3,), normal (3,) unit) or None
 
     Examples
     --------
-    Points symmetric across x = 0 only:
+    Points symmetric across x = 0 only, then across three planes:
 
     >>> V = np.array([[x, y, z] for x in (-2., 2) for y in (0., 1, 3) for z in (0., 1, 5)])
-    >>> c, e, score = mirror_plane(V)
-    >>> np.abs(e).round(6).tolist(), round(score, 9)
-    ([1.0, 0.0, 0.0], 0.0)
+    >>> c, e = bilateral_plane(V)
+    >>> np.abs(e).round(6).tolist()
+    [1.0, 0.0, 0.0]
+    >>> bilateral_plane(np.array([[x, y, z] for x in (-1., 1) for y in (-2., 2) for z in (-3., 3)]))
     """
-    c, planes = _principal_mirrors(V, n_points)
-    score, e = min(planes, key=lambda p: p[0])
-    return c, e, score
+    c, planes = principal_mirrors(V, n_points)
+    mirrors = [e for score, e in planes if score <= MIRROR_TOL]
+    return (c, mirrors[0]) if len(mirrors) == 1 else None
 
 
-def _principal_mirrors(V, n_points: int = MIRROR_POINTS):
-    """(centre, [(score, normal)] for the three principal planes through the centroid): see
-    :func:`mirror_plane`."""
+def principal_mirrors(V, n_points: int = MIRROR_POINTS):
+    """(centre, [(score, normal)] for the three principal planes through the centroid): score is
+    the mean distance from the reflected points to the nearest point, over the rms distance of
+    the points from the centroid (0 for an exact mirror image; whatever the scale). At most
+    ``n_points`` points, evenly spaced by distance from the centroid (the same whatever the
+    numbering)."""
     from scipy.spatial import cKDTree
 
     V = np.asarray(V, np.float64)
@@ -261,7 +267,6 @@ def _principal_mirrors(V, n_points: int = MIRROR_POINTS):
     rms = float(np.sqrt(r2.mean()))
     if len(V) < 4 or rms <= 0:
         return c, [(np.inf, np.array([1.0, 0.0, 0.0]))]
-    # evenly spaced by distance from the centroid: the same points whatever the numbering
     order = np.argsort(r2, kind="stable")
     P = V[order[np.unique(np.linspace(0, len(V) - 1, min(n_points, len(V))).astype(np.int64))]]
     _, axes = np.linalg.eigh(np.cov((V - c).T))
@@ -283,11 +288,10 @@ def _mirror_twin(V, pole, frame):
     a capsule or a sphere is its own mirror image across several planes, one of them across its
     middle, and f from the two ends of a bar (or two corners of one end) bent its tip joint off
     the axis by half the bar's width."""
-    c, planes = _principal_mirrors(V)
-    planes = [e for score, e in planes if score <= MIRROR_TOL]
-    if len(planes) != 1:
+    plane = bilateral_plane(V)
+    if plane is None:
         return None
-    e = planes[0]
+    c, e = plane
     image = V[pole] - 2.0 * float((V[pole] - c) @ e) * e
     twin = int(np.argmin(np.einsum("ij,ij->i", V - image, V - image)))
     if twin == pole:

@@ -1526,7 +1526,7 @@ def mirror_asymmetry(V, skeleton, D) -> float | None:
     """How far a skeleton of a mirror-symmetric mesh is from its own mirror image, / D.
 
     The mesh's mirror plane is its one principal plane across which it is its own mirror image
-    (:func:`.pole.mirror_plane`, ``pole.MIRROR_TOL``); the measure is the mean of
+    (:func:`.pole.bilateral_plane`); the measure is the mean of
     :func:`curve_distances` both ways between the skeleton and its reflection across that plane.
     Why: a rigger mirrors a character's left side onto its right; a skeleton whose paired limbs
     branch off at different places (the elephant's front legs 25 units apart, the human's neck
@@ -1546,13 +1546,12 @@ def mirror_asymmetry(V, skeleton, D) -> float | None:
     -------
     float, or None when the mesh is not mirror-symmetric across exactly one principal plane.
     """
-    from .pole import MIRROR_TOL, _principal_mirrors
+    from .pole import bilateral_plane
 
-    c, planes = _principal_mirrors(np.asarray(V, np.float64))
-    planes = [e for score, e in planes if score <= MIRROR_TOL]
-    if len(planes) != 1:
+    plane = bilateral_plane(np.asarray(V, np.float64))
+    if plane is None:
         return None
-    e = planes[0]
+    c, e = plane
     X, b = curve_arrays(skeleton)
     M = X - 2.0 * ((X - c) @ e)[:, None] * e
     d = curve_distances((X, b), (M, b), D)

@@ -480,6 +480,10 @@ class MirrorPlane:
 def mirror_plane(V, *, tol: float = 0.01, sample: int = 2000, seed: int = 0, all_planes: bool = False):
     """The mesh's best mirror plane, or None when no plane mirrors it within ``tol``.
 
+    For naming bones (``.L``/``.R``): it prefers the object's local X axis, as Blender's X-Axis
+    Mirror does. The method's own test of symmetry, which must not depend on the pose, is
+    :func:`.pole.bilateral_plane`.
+
     Candidate normals are the three coordinate axes and the three principal axes of the vertices,
     through their centroid; each candidate is refined by matching every sampled vertex to the
     vertex nearest its mirror image (a few rounds: the normal is the main direction of

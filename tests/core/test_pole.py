@@ -68,11 +68,11 @@ def test_mirror_symmetric_shape_grows_f_from_the_pole_and_its_image(shared_meshe
     from scipy.spatial import cKDTree
 
     from curveskel_addon.core.mesh_io import read_mesh
-    from curveskel_addon.core.pole import mirror_plane
+    from curveskel_addon.core.pole import bilateral_plane, principal_mirrors
     V, F = read_mesh(shared_meshes / "spot.obj")
     E, L = _graph(V, F)
-    c, e, score = mirror_plane(V)
-    assert score < 1e-9
+    c, e = bilateral_plane(V)
+    assert min(score for score, _ in principal_mirrors(V)[1]) < 1e-9
     twin = cKDTree(V).query(V - 2.0 * ((V - c) @ e)[:, None] * e)[1]
     p0, f0 = find_pole(V, E, L, 0)
     p, f = find_pole(V, E, L, 0, mirror=True)

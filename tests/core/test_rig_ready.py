@@ -506,12 +506,12 @@ def test_held_out_human_neck_rises_straight_from_the_chest():
     the left arm split off one contour at the left shoulder and the neck ran diagonally to the
     head (its junction 0.071 D off the plane)."""
     from curveskel_addon.core.mesh_io import read_mesh
-    from curveskel_addon.core.pole import mirror_plane
+    from curveskel_addon.core.pole import bilateral_plane
     V, F = read_mesh(HELDOUT / "human.obj")
     sk = skeletonize(V, F, SkeletonParams())
     D = bbox_diagonal(V, F)
     J, B = np.asarray(sk.joints), np.asarray(sk.bones)
-    c, e, _ = mirror_plane(V)
+    c, e = bilateral_plane(V)
     deg = np.bincount(B.ravel(), minlength=len(J))
     tips = np.flatnonzero(deg == 1)
     top = V[np.argmax(V[:, 1])]
