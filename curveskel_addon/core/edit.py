@@ -31,7 +31,7 @@ import numpy as np
 from .centreline import joint_adjacency
 from .quality import _point_segment_distance, skeleton_topology
 
-__all__ = ["chains", "merge_chains", "zip_parallel_chains", "collapse_short_bones", "prune_leaves", "compact", "chain_turns", "remove_sharp_turns", "edit_stage", "contain_stage", "undo_new_outside",
+__all__ = ["chains", "merge_chains", "zip_parallel_chains", "collapse_short_bones", "prune_leaves", "compact", "chain_turns", "remove_sharp_turns", "edit_stage", "contain_stage", "undo_new_outside", "put_back",
            "EDIT_CONSTANTS"]
 
 #: The edit stage's constants (pipeline defaults), named once.
@@ -521,15 +521,29 @@ def undo_new_outside(joints, bones, before, inside_test, *, rounds: int = 3) -> 
     (J,) bool : the joints put back.
     """
     k = EDIT_CONSTANTS["contain_samples"]
-    back = np.zeros(len(joints), bool)
     if not len(bones):
-        return back
+        return np.zeros(len(joints), bool)
     allowed = _outside_per_bone(inside_test, before, bones, k)[0].sum(1)
+    return put_back(joints, bones, before, lambda X: np.flatnonzero(
+        _outside_per_bone(inside_test, X, bones, k)[0].sum(1) > allowed), rounds=rounds)
+
+
+def put_back(joints, bones, before, worse, *, rounds: int = 3) -> np.ndarray:
+    """Joints of the bones ``worse(joints)`` returns (bone indices, worse than in ``before``)
+    put back to ``before``, in rounds until none is left or every such joint is back (in place,
+    positions only). The guards after a stage that moves joints use it
+    (:func:`undo_new_outside`, :func:`.pipeline.undo_new_folds`).
+
+    Returns
+    -------
+    (J,) bool : the joints put back.
+    """
+    back = np.zeros(len(joints), bool)
     for _ in range(rounds):
-        worse = np.flatnonzero(_outside_per_bone(inside_test, joints, bones, k)[0].sum(1) > allowed)
-        if not len(worse):
+        bad = np.asarray(worse(joints), np.int64)
+        if not len(bad):
             break
-        j = np.unique(bones[worse].ravel())
+        j = np.unique(bones[bad].ravel())
         j = j[~back[j]]
         if not len(j):
             break

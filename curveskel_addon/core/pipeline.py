@@ -33,7 +33,7 @@ from scipy.spatial import cKDTree
 
 from .centreline import SURFACE_RADII_ROUNDS, centre_stage, fit_radii_surface, smooth_chains
 from .cross_section import polish_chains
-from .edit import contain_stage, edit_stage, undo_new_outside
+from .edit import contain_stage, edit_stage, put_back, undo_new_outside
 from .errors import CurveSkelError
 from .junctions import onto_trunks
 from .mapping import closest_on_bones
@@ -432,18 +432,8 @@ def undo_new_folds(joints, bones, before, D, *, rounds: int = 3) -> np.ndarray:
         return found
 
     old = {tuple(p) for p in pairs(before)}
-    back = np.zeros(len(joints), bool)
-    for _ in range(rounds):
-        new = [p for p in pairs(joints) if tuple(p) not in old]
-        if not new:
-            break
-        j = np.unique(bones[np.unique(np.asarray(new).ravel())].ravel())
-        j = j[~back[j]]
-        if not len(j):
-            break
-        joints[j, :3] = before[j, :3]
-        back[j] = True
-    return back
+    return put_back(joints, bones, before, lambda X: np.unique(
+        [b for p in pairs(X) if tuple(p) not in old for b in p]), rounds=rounds)
 
 
 def _into_box(st) -> None:
