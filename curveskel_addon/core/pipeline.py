@@ -276,12 +276,10 @@ class SkeletonRun:
                     # the fit of E moves joints a little each; a wiggle of neighbours in
                     # opposite directions reads as a zig-zag: smooth it out along the chains
                     st.joints[:, :3] = smooth_chains(st.joints, st.bones, FIT_SMOOTHING)
-                from .quality import bbox_diagonal       # (lazy, as the stages import it)
-
                 if FOLD_GUARD:
                     # positions only (crossings measured with the edit stage's radii), so the
                     # radii are fitted once, after
-                    undo_new_folds(st.joints, st.bones, before_fit, bbox_diagonal(st.V))
+                    undo_new_folds(st.joints, st.bones, before_fit, st.diag)
                 if SURFACE_RADII:
                     # with the polish to come these radii only gauge the sections' reach
                     # (and its fold guard's crossings): least squares, no reweighting
@@ -312,7 +310,6 @@ class SkeletonRun:
         (:func:`.junctions.onto_trunks`), joints moved into a new fold or crossing, or taking a
         bone further out of the mesh, put back,
         radii refitted to the surface. Returns the number of chain joints that moved."""
-        from .quality import bbox_diagonal
         st = self.state
         before = st.joints.copy()
         X, moved = polish_chains(st.V, st.F, st.joints, st.bones, st.inside,
@@ -326,7 +323,7 @@ class SkeletonRun:
         st.joints[:, :3] = X
         if FOLD_GUARD:
             # positions only (crossings measured with the radii before): one radius fit after
-            undo_new_folds(st.joints, st.bones, before, bbox_diagonal(st.V))
+            undo_new_folds(st.joints, st.bones, before, st.diag)
         if INSIDE_GUARD:
             # (each move was checked for its joint only: a bone can cut a corner out)
             undo_new_outside(st.joints, st.bones, before, st.inside)

@@ -113,6 +113,7 @@ class PipelineState:
     _inside: object = None
     _size: float | None = None
     _faces_around: tuple | None = None
+    _diag: float | None = None
 
     @property
     def size(self) -> float:
@@ -129,6 +130,14 @@ class PipelineState:
             from .quality import InsideTest
             self._inside = InsideTest(self.V, self.F)
         return self._inside
+
+    @property
+    def diag(self) -> float:
+        """The working vertices' bounding-box diagonal (the unit of the fold measure), once."""
+        if self._diag is None:
+            from .quality import bbox_diagonal
+            self._diag = bbox_diagonal(self.V)
+        return self._diag
 
     @property
     def faces_around(self):
