@@ -187,6 +187,24 @@ def bent_tube(bend=BENT_TUBE["bend"], radius=BENT_TUBE["radius"], angle=BENT_TUB
     return tube_along(path, radius, n_around)
 
 
+#: A capsule (radius 1, axis z from 0 to 6) with a flat round flap (an ear) on its side: a disc
+#: of ``radius`` and ``thickness`` in the xz-plane, centred at ``centre``, its near edge 0.2
+#: inside the capsule.
+FLAP = {"radius": 1.5, "thickness": 0.15, "centre": (2.3, 0.0, 3.0)}
+__all__ += ["capsule_with_flap", "FLAP"]
+
+
+def capsule_with_flap(radius=FLAP["radius"], thickness=FLAP["thickness"], centre=FLAP["centre"],
+                      edge: float = 0.15):
+    """:func:`capsule` united with a disc (the flap, see ``FLAP``), manifold3d booleans, edges
+    refined to at most ``edge``. Returns (V, F)."""
+    import manifold3d as m3
+
+    disc = m3.Manifold.cylinder(thickness, radius, radius, 64, True).rotate([90, 0, 0])
+    body = _manifold_from(*capsule(radius=1.0, length=6.0))
+    return _to_arrays((body + disc.translate(list(centre))).refine_to_length(edge))
+
+
 def polyline(P, closed: bool = False):
     """The curve through points ``P`` (k, 3) in order (and back to the first if ``closed``)."""
     P = np.asarray(P, float).reshape(-1, 3)

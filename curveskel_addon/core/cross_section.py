@@ -37,7 +37,7 @@ from scipy.sparse.csgraph import connected_components
 from .mesh_graph import faces_around
 from .quality import orthonormal_frame
 
-__all__ = ["section_centroids", "vertex_edges", "polish_chains", "STEP", "ROUNDS", "REACH",
+__all__ = ["section_centroids", "section_loops", "vertex_edges", "polish_chains", "STEP", "ROUNDS", "REACH",
            "FADE", "TIP_REACH", "SMOOTH", "LEAF_STEP"]
 
 #: Fraction of the way to the centroid a joint moves per round.
@@ -97,6 +97,24 @@ def section_centroids(V, F, X, T, reach, *, face_of=None, vertex_edge=None):
     >>> np.round(C, 6).tolist(), np.round(extent, 6).tolist()
     ([[0.5, 0.5, 0.5]], [1.063015])
     """
+    C, extent, _ = section_loops(V, F, X, T, reach, face_of=face_of, vertex_edge=vertex_edge)
+    return C, extent
+
+
+def section_loops(V, F, X, T, reach, *, face_of=None, vertex_edge=None):
+    """:func:`section_centroids` with each loop's area: (C, extent, area), area 0 where no
+    loop was found. A round section of radius r has area pi r^2 and extent r; a flat strip's
+    area is a small part of the disc of its extent (:mod:`.flaps`).
+
+    Examples
+    --------
+    >>> V = np.array([[x, y, z] for x in (0., 1) for y in (0., 1) for z in (0., 1)])
+    >>> F = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+    ...               [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    >>> C, extent, area = section_loops(V, F, [[0.5, 0.2, 0.3]], [[1.0, 0, 0]], [2.0])
+    >>> np.round(area, 6).tolist()
+    [1.0]
+    """
     V = np.asarray(V, np.float64)
     F = np.asarray(F, np.int64).reshape(-1, 3)
     X = np.asarray(X, np.float64).reshape(-1, 3)
@@ -105,8 +123,9 @@ def section_centroids(V, F, X, T, reach, *, face_of=None, vertex_edge=None):
     k, n = len(X), len(V)
     C = X.copy()
     extent = np.full(k, np.inf)
+    area_out = np.zeros(k)
     if not k or not len(F):
-        return C, extent
+        return C, extent, area_out
     if face_of is None:
         face_of = faces_around(F, n)
     if vertex_edge is None:
@@ -126,7 +145,7 @@ def section_centroids(V, F, X, T, reach, *, face_of=None, vertex_edge=None):
     pi, Fc, h, neg = pi[cut], Fc[cut], h[cut], neg[cut]
     f = len(Fc)
     if not f:
-        return C, extent
+        return C, extent, area_out
     # the two edges of each cut face whose ends lie on opposite sides, in corner order
     P = np.empty((f, 2, 3))
     key = np.empty((f, 2), np.int64)
@@ -181,7 +200,8 @@ def section_centroids(V, F, X, T, reach, *, face_of=None, vertex_edge=None):
     C[j] = (X[j] + (cx[cand] / (6.0 * area[cand]))[:, None] * E1[j]
             + (cy[cand] / (6.0 * area[cand]))[:, None] * E2[j])
     extent[j] = np.sqrt(far[cand])
-    return C, extent
+    area_out[j] = area[cand]
+    return C, extent, area_out
 
 
 def _slab_vertices(V, X, T, reach, vertex_edge):
@@ -240,7 +260,7 @@ def vertex_edges(V, F, face_of=None):
 
 
 def polish_chains(V, F, joints, bones, inside, *, rounds=ROUNDS, step=STEP, reach=REACH,
-                  smooth=SMOOTH, face_of=None):
+                  smooth=SMOOTH, face_of=None, vertex_edge=None, fixed=()):
     """Chain joints moved towards their cross-sections' centroids (see the module docstring).
 
     Parameters
@@ -252,6 +272,10 @@ def polish_chains(V, F, joints, bones, inside, *, rounds=ROUNDS, step=STEP, reac
         The mesh's inside test: a joint whose new place is outside stays where it was.
     face_of : optional
         The faces around each vertex (:func:`.mesh_graph.faces_around`), if at hand.
+    vertex_edge : (n,) float, optional
+        :func:`vertex_edges` of the mesh, if at hand.
+    fixed : sequence of int
+        Joints that stay where they are, as junctions do (chains laid by :mod:`.flaps`).
 
     Returns
     -------
@@ -265,10 +289,11 @@ def polish_chains(V, F, joints, bones, inside, *, rounds=ROUNDS, step=STEP, reac
     X = J[:, :3].copy()
     bones = np.asarray(bones, np.int64).reshape(-1, 2)
     hub = np.bincount(bones.ravel(), minlength=len(X)) >= 3       # junctions stay
+    hub[np.asarray(fixed, np.int64)] = True
     if not len(F):
         return X, 0
     face_of = faces_around(F, len(V)) if face_of is None else face_of
-    vertex_edge = vertex_edges(V, F, face_of)
+    vertex_edge = vertex_edges(V, F, face_of) if vertex_edge is None else vertex_edge
     moved = 0
     moving, a, b, tip = _planes(bones, len(X))
     if not len(moving):
@@ -293,7 +318,7 @@ def polish_chains(V, F, joints, bones, inside, *, rounds=ROUNDS, step=STEP, reac
             Z = smooth_chains(Y, bones, smooth)
             Z[moving[tip]] = Y[moving[tip]]
             Y = Z
-            Y[hub] = X[hub]
+        Y[hub] = X[hub]
         stay = ~inside(Y)
         Y[stay] = X[stay]
         X = Y

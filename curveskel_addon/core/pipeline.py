@@ -10,7 +10,8 @@
       -> radii       chains smoothed, radii fitted to the surface with the curve fixed
                      (:func:`.centreline.fit_radii_surface`)
       -> contain     tips trimmed, bones that leave the mesh split at medial points (:mod:`.edit`)
-      -> polish      chain joints towards the centroids of the mesh's cross-sections through
+      -> polish      a flap's chain (an ear) laid into the flap's middle (:mod:`.flaps`), other
+                     chain joints towards the centroids of the mesh's cross-sections through
                      them, radii refitted (:mod:`.cross_section`)
       -> Skeleton    every input vertex mapped; the reported E is that of the returned skeleton
 
@@ -35,6 +36,7 @@ from .centreline import SURFACE_RADII_ROUNDS, centre_stage, fit_radii_surface, s
 from .cross_section import polish_chains
 from .edit import contain_stage, edit_stage, put_back, undo_new_outside
 from .errors import CurveSkelError
+from .flaps import lay_flaps
 from .junctions import onto_trunks
 from .mapping import closest_on_bones
 from .mesh_graph import components
@@ -67,6 +69,9 @@ CROSSING_GUARD = True
 POLISH = True
 #: ... and junctions move onto the straight line of their trunk (:mod:`.junctions`).
 TRUNK_JUNCTIONS = True
+#: ... but a chain into a flap (an ear: flat sections) is laid from its junction into the
+#: flap's middle first, and stays there (:mod:`.flaps`).
+FLAPS = True
 #: ... and the polish's moves that take a bone further out of the mesh are put back
 #: (:func:`.edit.undo_new_outside`).
 INSIDE_GUARD = True
@@ -305,15 +310,23 @@ class SkeletonRun:
         return self._finished
 
     def _polish(self) -> int:
-        """The polish stage: chain joints and tips towards their cross-sections' centroids
+        """The polish stage: a flap's chain laid into the flap's middle (:mod:`.flaps`), other
+        chain joints and tips towards their cross-sections' centroids
         (:func:`.cross_section.polish_chains`), junctions onto their trunks
         (:func:`.junctions.onto_trunks`), joints moved into a new fold or crossing, or taking a
         bone further out of the mesh, put back,
         radii refitted to the surface. Returns the number of chain joints that moved."""
         st = self.state
         before = st.joints.copy()
+        laid = np.zeros(0, np.int64)
+        if FLAPS:
+            laid, Y = lay_flaps(st.V, st.F, st.weights, st.joints, st.bones, st.inside,
+                                st.medial[0], face_of=st.faces_around,
+                                vertex_edge=st.vertex_edges)
+            st.joints[laid, :3] = Y
         X, moved = polish_chains(st.V, st.F, st.joints, st.bones, st.inside,
-                                 face_of=st.faces_around)
+                                 face_of=st.faces_around, vertex_edge=st.vertex_edges,
+                                 fixed=laid)
         if TRUNK_JUNCTIONS:
             # (a junction whose trunk line leaves the mesh stays where it was)
             Y = onto_trunks(X, st.joints[:, 3], st.bones)

@@ -113,6 +113,7 @@ class PipelineState:
     _inside: object = None
     _size: float | None = None
     _faces_around: tuple | None = None
+    _vertex_edges: np.ndarray | None = None
     _diag: float | None = None
 
     @property
@@ -147,6 +148,15 @@ class PipelineState:
             from .mesh_graph import faces_around
             self._faces_around = faces_around(self.F, len(self.V))
         return self._faces_around
+
+    @property
+    def vertex_edges(self) -> np.ndarray:
+        """(n,) the longest side of the faces around each vertex
+        (:func:`.cross_section.vertex_edges`: the slab of a cross-section), built once."""
+        if self._vertex_edges is None:
+            from .cross_section import vertex_edges
+            self._vertex_edges = vertex_edges(self.V, self.F, self.faces_around)
+        return self._vertex_edges
 
     @property
     def n_regions(self) -> int:

@@ -408,15 +408,16 @@ def test_no_part_holds_two_bones_side_by_side(shared_meshes, name):
 
 @pytest.mark.parametrize("name,to_ref,length", [("spot.obj", 0.013, 1.25),
                                                 ("armadillo.obj", 0.014, 1.25),
-                                                ("elephant.obj", 0.029, 1.30)])
+                                                ("elephant.obj", 0.020, 1.25)])
 def test_limbs_branch_off_a_straight_body(shared_meshes, name, to_ref, length):
     """A junction sits on the line of its body's chains (core/junctions.py): spot's spine dipped
     to its hind legs' junction (to_ref 0.0116 D), armadillo's spine ran diagonally between its
     two shoulders (0.0152 D), elephant's hips kinked (length 1.26x the reference's). Measured
     when written: 0.0101, 0.0131, length 1.21; since f grows from the pole and its mirror image
     (pole.py) spot 0.0122 (its four legs reach their hooves) and elephant length 1.27 (both
-    ears run to their top corners): the bounds follow, and the symmetry they bought is tested
-    below."""
+    ears ran to their top corners); since ear chains run into the ears' middle (flaps.py)
+    elephant to_ref 0.0147 and length 1.12: the bounds follow (elephant's are the issue's
+    targets), and the symmetry they bought is tested below."""
     from curveskel_addon.core.mesh_io import read_mesh
     from curveskel_addon.core.quality import shape_measures
     V, F = read_mesh(shared_meshes / name)
@@ -486,14 +487,14 @@ def test_held_out_human_reaches_hands_feet_and_head():
     assert max(gap) <= 0.06, gap
 
 
-@pytest.mark.parametrize("name,most", [("spot.obj", 0.002), ("elephant.obj", 0.015),
+@pytest.mark.parametrize("name,most", [("spot.obj", 0.002), ("elephant.obj", 0.010),
                                        ("homer.obj", 0.006)])
 def test_mirror_symmetric_meshes_get_mirror_symmetric_skeletons(shared_meshes, name, most):
     """A rigger mirrors one side of a character onto the other: on a mirror-symmetric mesh the
     skeleton is its own mirror image (quality.mirror_asymmetry, / D). Before f grew from the pole
     and its mirror image (pole.py): spot 0.018, elephant 0.022 (its front legs joined the body
     25 units apart), homer 0.008; the references: 0.003-0.004. Measured when written: 0.0007,
-    0.0120, 0.0045."""
+    0.0120, 0.0045; elephant 0.0074 since its ear chains run into the ears' middle (flaps.py)."""
     from curveskel_addon.core.mesh_io import read_mesh
     from curveskel_addon.core.quality import mirror_asymmetry
     V, F = read_mesh(shared_meshes / name)

@@ -1,0 +1,197 @@
+"""Flaps (ears, fins, flat lobes): a leaf chain laid from its junction into the flap's middle.
+
+Why: a flap's medial surface is a sheet, so no one curve is its skeleton, and its Reeb branch
+runs to where the geodesic distance f peaks: a corner of the flap. The elephant's ear chains
+ended at the ears' top outer corners, 0.05 D from CGAL's ear lines (issue 10). A rigger's ear
+bone pivots at the ear's root and points into the ear's middle; mean-curvature flow shrinks a
+flap towards the same line. The cross-sections the polish centres a chain on do not help here:
+across a flap they are long strips, beyond any reach a limb's section has.
+
+A leaf chain is a flap's when its cross-sections are flat: the area of the section loop round
+a joint is below ``ROUNDNESS`` times the disc of the loop's reach (a strip more than about 8.5
+times wider than thick; a round limb's sections are 0.4-0.9), at the median of its sections
+away from the junction (the first one cuts the body). Its joints are then laid evenly on the
+straight line from the junction towards the area centroid of the vertices closest to the
+chain, ending where the flap's half-width fits behind the tip (a round flap ends at its centre,
+a long fin half a width short of its end), moved onto the flap's medial sheet (the nearest
+medial point of the flap: a cupped ear's centroid lies off the ear). The line must lie inside
+the mesh, else the chain is left as it was.
+
+Examples
+--------
+>>> idx, Y = lay_flaps(V, F, w, joints, bones, inside, medial)    # doctest: +SKIP
+>>> joints[idx, :3] = Y
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .cross_section import section_loops
+from .edit import chains
+from .mapping import closest_on_bones
+
+__all__ = ["lay_flaps", "flap_chains", "section_roundness", "ROUNDNESS", "SECTION_REACH",
+           "MIN_SECTIONS", "MAX_SECTIONS", "LINE_SAMPLES"]
+
+#: A section whose area is below this fraction of the disc of its reach is a flap's.
+ROUNDNESS = 0.15
+#: Sections are looked for up to this many joint radii (a flap's reach is its half-width).
+SECTION_REACH = 10.0
+#: A chain needs this many sections found away from its junction to be judged ...
+MIN_SECTIONS = 2
+#: ... and is judged on at most this many, spread along it (a long limb's are all alike).
+MAX_SECTIONS = 5
+#: Points per laid line tested for being inside the mesh.
+LINE_SAMPLES = 40
+# the far edge and the half-width: quantiles of the flap's vertices (a stray vertex of the body
+# mapped to the chain does not set them)
+_FAR_QUANTILE = 0.99
+_HALF_QUANTILE = 0.90
+
+
+def section_roundness(area, extent):
+    """Section area ÷ the area of the disc of its reach: 1 for a round section, ~4t/(pi w) for
+    a strip of width w and thickness t; 0 where no loop was found (``extent`` inf).
+
+    Examples
+    --------
+    >>> section_roundness(np.array([np.pi, 0.4]), np.array([1.0, 1.0])).round(3).tolist()
+    [1.0, 0.127]
+    """
+    area = np.asarray(area, np.float64)
+    extent = np.asarray(extent, np.float64)
+    ok = np.isfinite(extent) & (extent > 0)
+    return np.where(ok, area / (np.pi * np.where(ok, extent, 1.0) ** 2), 0.0)
+
+
+def _leaf_chains(n, bones):
+    """(joints from junction to tip, bones in that order) of every chain from a junction to a
+    leaf."""
+    deg = np.bincount(bones.ravel(), minlength=n)
+    out = []
+    for js, bs in chains(n, bones):
+        if deg[js[0]] == 1 and deg[js[-1]] != 1:
+            js, bs = js[::-1], bs[::-1]
+        if deg[js[-1]] == 1 and deg[js[0]] >= 3:
+            out.append((np.asarray(js, np.int64), np.asarray(bs, np.int64)))
+    return out
+
+
+def flap_chains(V, F, joints, bones, *, face_of=None, vertex_edge=None):
+    """The leaf chains whose cross-sections are flat (see the module docstring).
+
+    Returns
+    -------
+    list of (joints (k,) int, bones (k - 1,) int): each from its junction to its tip.
+    """
+    J = np.asarray(joints, np.float64)
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    cand = [(js, bs) for js, bs in _leaf_chains(len(J), bones) if len(js) >= MIN_SECTIONS + 3]
+    if not cand:
+        return []
+    # planes across the chain (along the neighbours' difference) at up to MAX_SECTIONS of its
+    # joints between the junction's neighbour (whose section cuts the body) and the tip
+    pts, tan, rad, own = [], [], [], []
+    for k, (js, _) in enumerate(cand):
+        at = np.arange(2, len(js) - 1)
+        at = at[np.unique(np.linspace(0, len(at) - 1, min(len(at), MAX_SECTIONS)).round()
+                          .astype(np.int64))]
+        pts.append(J[js[at], :3])
+        tan.append(J[js[at + 1], :3] - J[js[at - 1], :3])
+        rad.append(J[js[at], 3])
+        own.append(np.full(len(at), k))
+    P, T, r, own = (np.concatenate(x) for x in (pts, tan, rad, own))
+    nt = np.linalg.norm(T, axis=1, keepdims=True)
+    T = np.divide(T, nt, out=np.zeros_like(T), where=nt > 0)
+    _, extent, area = section_loops(V, F, P, T, SECTION_REACH * np.abs(r), face_of=face_of,
+                                    vertex_edge=vertex_edge)
+    rnd = section_roundness(area, extent)
+    found = np.isfinite(extent)
+    out = []
+    for k, (js, bs) in enumerate(cand):
+        sel = np.flatnonzero((own == k) & found)
+        if len(sel) >= MIN_SECTIONS and np.median(rnd[sel]) < ROUNDNESS:
+            out.append((js, bs))
+    return out
+
+
+def _weighted_quantile(x, w, q):
+    order = np.argsort(x, kind="stable")
+    c = np.cumsum(w[order])
+    return float(x[order][min(np.searchsorted(c, q * c[-1]), len(x) - 1)])
+
+
+def _flap_line(V, w, a):
+    """(unit direction, length) of the line from ``a`` into the flap of vertices ``V`` with
+    area weights ``w``; None if the flap's centroid is at ``a``."""
+    c = (w[:, None] * V).sum(axis=0) / w.sum()
+    d = c - a
+    L = float(np.linalg.norm(d))
+    if not L > 0:
+        return None
+    d /= L
+    s = (V - a) @ d
+    perp = np.linalg.norm((V - a) - s[:, None] * d, axis=1)
+    far = _weighted_quantile(s, w, _FAR_QUANTILE)
+    ahead = s > 0
+    half = _weighted_quantile(perp[ahead], w[ahead], _HALF_QUANTILE) if ahead.any() else 0.0
+    return d, max(L, far - half)
+
+
+def lay_flaps(V, F, weights, joints, bones, inside, medial, *, face_of=None,
+              vertex_edge=None):
+    """New places for the joints of every flap's chain (see the module docstring).
+
+    Parameters
+    ----------
+    V, F : the mesh
+    weights : (n,) float
+        Vertex area weights (the flap's centroid is an area centroid).
+    joints : (J, 4) float
+    bones : (B, 2) int
+    inside : callable (k, 3) -> (k,) bool
+        The mesh's inside test.
+    medial : (k, 3) float
+        Medial points of the mesh (:func:`.centreline.centre_stage`'s): the tip goes to the
+        flap's one nearest the line's end.
+    face_of, vertex_edge : optional
+        The faces around each vertex (:func:`.mesh_graph.faces_around`) and the longest side
+        of those faces (:func:`.cross_section.vertex_edges`), if at hand.
+
+    Returns
+    -------
+    idx : (k,) int
+        The joints laid (every joint of each flap's chain but its junction).
+    Y : (k, 3) float
+        Their new places.
+    """
+    J = np.asarray(joints, np.float64)
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    V = np.asarray(V, np.float64)
+    w = np.asarray(weights, np.float64)
+    flaps = flap_chains(V, F, J, bones, face_of=face_of, vertex_edge=vertex_edge)
+    idx, Y = [], []
+    if not flaps:
+        return np.zeros(0, np.int64), np.zeros((0, 3))
+    M = np.asarray(medial, np.float64).reshape(-1, 3)
+    bone, _, _ = closest_on_bones(V, J[:, :3], bones)
+    mbone = closest_on_bones(M, J[:, :3], bones)[0] if len(M) else np.zeros(0, np.int64)
+    for js, bs in flaps:
+        mine = np.isin(bone, bs)
+        sheet = M[np.isin(mbone, bs)]
+        a = J[js[0], :3]
+        line = _flap_line(V[mine], w[mine], a) if mine.any() and len(sheet) else None
+        if line is None:
+            continue
+        d, length = line
+        end = a + length * d
+        tip = sheet[np.argmin(np.einsum("ij,ij->i", sheet - end, sheet - end))]
+        if not inside(a + (tip - a) * np.linspace(0.0, 1.0, LINE_SAMPLES + 1)[1:, None]).all():
+            continue
+        m = len(js) - 1
+        idx.append(js[1:])
+        Y.append(a + (tip - a) * (np.arange(1, m + 1) / m)[:, None])
+    if not idx:
+        return np.zeros(0, np.int64), np.zeros((0, 3))
+    return np.concatenate(idx), np.concatenate(Y)
