@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import CurveSkelError
+from .rows import col_max, col_min
 
 __all__ = ["closest_on_bones"]
 
@@ -136,7 +137,7 @@ def _all_bones(P, X, bones):
     bone = np.zeros(n, np.int64)
     if n == 0 or nb == 1:
         return (bone, *_pair_closest(P, X[bones[bone, 0]], X[bones[bone, 1]]))
-    o = 0.5 * (P.min(axis=0) + P.max(axis=0))
+    o = 0.5 * (col_min(P) + col_max(P))
     A = X[bones[:, 1]] - o
     D = X[bones[:, 0]] - X[bones[:, 1]]
     DD = np.einsum("ij,ij->i", D, D)

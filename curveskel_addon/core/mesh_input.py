@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import CurveSkelError
+from .rows import col_max, col_min
 
 __all__ = ["CleanMesh", "clean_mesh", "triangulate", "MERGE_TOLERANCE", "FLAT_TOLERANCE"]
 
@@ -397,7 +398,7 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
         raise CurveSkelError("every face is degenerate (repeated vertices): nothing to skeletonize")
     used = np.bincount(Fm.ravel(), minlength=len(uniq)) > 0
     Vu = uniq[used]
-    size = float(np.linalg.norm(Vu.max(axis=0) - Vu.min(axis=0)))
+    size = float(np.linalg.norm(col_max(Vu) - col_min(Vu)))
     if size == 0.0:
         raise CurveSkelError("every face has zero area (all vertices at one point): nothing to skeletonize")
     tol = MERGE_TOLERANCE * size

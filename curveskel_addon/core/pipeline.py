@@ -42,10 +42,11 @@ from .mesh_input import clean_mesh
 from .params import SkeletonParams, check_params
 from .problem import FitProblem, SolverState
 from .reeb import first_approximation
+from .rows import col_max, col_min
 from .skeleton import Skeleton
 from .solvers import solve_steps
 from .state import PipelineState, canonical_subset
-from .vertex_area import vertex_areas
+from .vertex_area import face_cross, vertex_areas
 
 __all__ = ["skeletonize", "SkeletonRun"]
 
@@ -98,7 +99,7 @@ class SkeletonRun:
             # Work about the centre of the bounding box, joints moved back on output: far from
             # the origin, expanded squares (|a|^2 - 2ab + |b|^2) lose the digits that decide an
             # edit (a horse moved by 1e6 of its size changed by 0.006 of it; issue 12).
-            self.origin = (self.mesh.V.min(axis=0) + self.mesh.V.max(axis=0)) / 2
+            self.origin = (col_min(self.mesh.V) + col_max(self.mesh.V)) / 2
             self.mesh.V = self.mesh.V - self.origin
             self._input_V = np.asarray(V, dtype=np.float64) - self.origin
         with self._timed("components"):
@@ -180,10 +181,11 @@ class SkeletonRun:
             self.progress("first_approximation", (c + 1) / self.n_components)
         self.component_meta = comp_meta
         self._bone_spacing = np.concatenate(spacing)
-        areas = None
+        areas = fn = None
         with self._timed("weights"):
             if p.area_weighted:
-                areas = vertex_areas(V, F)
+                fn = face_cross(V, F)           # the centring's surface normals use it too
+                areas = vertex_areas(V, F, fn)
                 # mean 1: E stays on the vertex-sum scale
                 w = areas * (len(V) / max(areas.sum(), 1e-300))
             else:
@@ -191,6 +193,11 @@ class SkeletonRun:
         st = PipelineState(V, F, w, np.concatenate(joints), np.concatenate(bones), bone, t, region,
                            np.unique(np.concatenate(pairs), axis=0))
         st.areas = areas
+        if self.n_components == 1 and "size" in comp_meta[0]:
+            # the one component is the working mesh, its vertices in order: the size its first
+            # approximation measured is the state's (the same minimum enclosing ball)
+            st._size = float(comp_meta[0]["size"])
+        st.face_cross = fn
         st._inside = self._inside
         st.key = np.where(np.isfinite(key), key, 0.0)
         st.record("initialise", sum(self.timings.get(k, 0.0) for k in
@@ -222,7 +229,7 @@ class SkeletonRun:
         self.fit_subset = None
         n = len(pr.points)
         if p.area_weighted and p.max_fit_points and n > p.max_fit_points:
-            idx = canonical_subset(st.key, p.max_fit_points, p.seed)
+            idx = canonical_subset(st.key, p.max_fit_points, p.seed, order=st.key_order)
             self.fit_subset = idx
             pr = FitProblem(pr.points[idx], pr.weights[idx] * (n / p.max_fit_points), pr.joints,
                             pr.bones, pr.bone[idx], pr.t[idx], pr.meta)
@@ -349,7 +356,7 @@ class SkeletonRun:
             # a uniform draw, each vertex with its area: an unbiased estimate of the area-weighted
             # sum whatever the share drawn (a draw with probabilities by area is not one when it
             # takes most of the vertices)
-            idx = canonical_subset(st.key, SAMPLES, self.params.seed + 2)
+            idx = canonical_subset(st.key, SAMPLES, self.params.seed + 2, order=st.key_order)
         else:
             idx = np.arange(n)
         w = st.weights[idx]
@@ -439,7 +446,7 @@ def _into_box(st) -> None:
     A joint outside the box is outside the shape. On a tiny flat solid (8-40 hull points,
     issue 12's property test) the fit can push one there, and the medial point a bone is split
     at can lie off a shape that has almost no inside."""
-    st.joints[:, :3] = np.clip(st.joints[:, :3], st.V.min(axis=0), st.V.max(axis=0))
+    st.joints[:, :3] = np.clip(st.joints[:, :3], *st.bbox)
 
 
 def _flip_radii(joints) -> np.ndarray:

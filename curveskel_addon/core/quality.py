@@ -87,6 +87,7 @@ from scipy.spatial import cKDTree
 
 from .errors import CurveSkelError
 from .mesh_graph import adjacency
+from .rows import col_max, col_min, col_ptp, take_rows
 from .vertex_area import vertex_areas
 
 __all__ = ["quality", "sd_round_cone", "round_cone_geometry", "sd_round_cone_radii",
@@ -591,16 +592,18 @@ class _RayGrid:
         self.F = F
         m = len(F)
         Y = np.ascontiguousarray(Vr[:, 1:])            # gathers from a contiguous copy
-        a, b, c = Y[F[:, 0]], Y[F[:, 1]], Y[F[:, 2]]
+        a, b, c = take_rows(Y, F[:, 0]), take_rows(Y, F[:, 1]), take_rows(Y, F[:, 2])
         lo = np.minimum(np.minimum(a, b), c)
         hi = np.maximum(np.maximum(a, b), c)
         del a, b, c
-        self.glo = glo = Y.min(axis=0) if len(Y) else np.zeros(2)
-        self.ghi = Y.max(axis=0) if len(Y) else np.zeros(2)
+        self.glo = glo = col_min(Y) if len(Y) else np.zeros(2)
+        self.ghi = col_max(Y) if len(Y) else np.zeros(2)
         ext = np.maximum(self.ghi - glo, 1e-300)
         side = np.sqrt(ext[0] * ext[1] * _CELL_FACES / max(m, 1))
         if m:
-            side = max(side, _SIDE_MEDIAN * float(np.median((hi - lo).max(axis=1))))
+            wide = hi - lo
+            side = max(side, _SIDE_MEDIAN * float(np.median(np.maximum(wide[:, 0], wide[:, 1]))))
+            del wide
         self.levels = []
         tris, n_prev = [], 0
         rest = np.arange(m, dtype=np.int32 if m < 2**31 else np.int64)
@@ -966,7 +969,7 @@ def quality(V, F, skeleton, *, n_samples=20000, seed=0, bone_samples=10, referen
     if len(joints) == 0:
         raise CurveSkelError("the skeleton has no joints")
     used = np.unique(F)
-    D = float(np.linalg.norm(np.ptp(V[used], axis=0)))
+    D = float(np.linalg.norm(col_ptp(V[used])))
     if not D > 0:
         raise CurveSkelError("the mesh has zero size")
     rng = np.random.default_rng(seed)
@@ -1068,7 +1071,7 @@ def bbox_diagonal(V, F=None) -> float:
         V = V[np.unique(np.asarray(F, dtype=np.int64))]
     if len(V) == 0:
         return 0.0
-    return float(np.linalg.norm(np.ptp(V, axis=0)))
+    return float(np.linalg.norm(col_ptp(V)))
 
 
 def curve_arrays(skeleton):
