@@ -68,11 +68,12 @@ def surface_points(V, F, fn=None):
                    for c in range(3)], axis=1) if len(F) else np.zeros_like(V)
     used = np.zeros(len(V), dtype=bool)
     used[F.ravel()] = True
+    every = bool(used.all())            # (the usual case: no copy of the vertices first)
     # centroids: (A + B + C) / 3 is what V[F].mean(axis=1) computes (same order), without the
     # (m, 3, 3) gather
-    pts = np.concatenate([V[used], (A + B + C) / 3.0])
+    pts = np.concatenate([V if every else V[used], (A + B + C) / 3.0])
     del A, B, C
-    nrm = np.concatenate([vn[used], fn])
+    nrm = np.concatenate([vn if every else vn[used], fn])
     nrm /= np.maximum(row_norm(nrm), 1e-300)[:, None]
     pts.flags.writeable = False
     nrm.flags.writeable = False

@@ -146,16 +146,22 @@ class SkeletonRun:
         key = np.zeros(len(V))
         nj = nb = nr = 0
         comp_meta = []
+        one = self.n_components == 1
         for c in range(self.n_components):
             vids = order[starts[c]:starts[c + 1]]
-            local[vids] = np.arange(len(vids))
-            Fc = local[F[forder[fstarts[c]:fstarts[c + 1]]]]
+            if one:                # the whole working mesh, in order: no renumbered copy
+                Vc, Fc = V, F
+            else:
+                local[vids] = np.arange(len(vids))
+                Vc, Fc = V[vids], local[F[forder[fstarts[c]:fstarts[c + 1]]]]
             # one seed for every component: seed 0 starts each pole search at the vertex farthest from its
             # centroid, so the skeleton does not depend on how the components are numbered
             # one component: the whole working mesh, whose exact inside test the later stages
             # build anyway (the first approximation may use it)
-            fa = first_approximation(V[vids], Fc, spacing=p.spacing, seed=p.seed,
-                                     inside=self._inside_test if self.n_components == 1 else None)
+            fa = first_approximation(Vc, Fc, spacing=p.spacing, seed=p.seed,
+                                     inside=self._inside_test if one else None,
+                                     # (one component: Fc is F, the census's triangles)
+                                     edges=self.mesh.edge_table() if one else None)
             for stage, sec in fa.meta.get("timings", {}).items():
                 self.timings[stage] = self.timings.get(stage, 0.0) + sec
             if fa.region is None:             # one bone for the whole component
@@ -180,6 +186,7 @@ class SkeletonRun:
                                 "bones": int(len(fa.bones))})
             self.progress("first_approximation", (c + 1) / self.n_components)
         self.component_meta = comp_meta
+        self.mesh.edge_matrix = None          # (the census served the first approximation)
         self._bone_spacing = np.concatenate(spacing)
         areas = fn = None
         with self._timed("weights"):
