@@ -140,6 +140,8 @@ def _merge_identical(V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     Vs = take_rows(V, order)
     starts = np.ones(len(V), bool)
     starts[1:] = rows_differ(Vs[1:], Vs[:-1])
+    if starts.all():                  # no two alike (the usual case): what the rest would give
+        return V.copy(), np.arange(len(V), dtype=np.int64)
     group = np.cumsum(starts) - 1                       # group id in sorted order
     # Number groups by their first input index so the working mesh keeps the input's order.
     first_min = np.minimum.reduceat(order, np.flatnonzero(starts))
@@ -327,13 +329,13 @@ def _boundary_vertices(A) -> np.ndarray:
     return np.concatenate([rows[one], A.indices[one]])
 
 
-def _flat_components(V: np.ndarray, labels: np.ndarray, k: int) -> np.ndarray:
+def _flat_components(V: np.ndarray, labels: np.ndarray, k: int, centre=None) -> np.ndarray:
     """(k,) bool: the components whose vertices lie in one plane (RMS distance from their plane
     of best fit at most ``FLAT_TOLERANCE`` of their RMS radius)."""
     if k == 1:
-        centre = V.mean(axis=0)
+        centre = V.mean(axis=0) if centre is None else centre     # (V's mean, if at hand)
         size = float(np.sqrt(row_sumsq(V - centre).mean()))
-        return np.array([_thickness(V) <= FLAT_TOLERANCE * size])
+        return np.array([_thickness(V, centre) <= FLAT_TOLERANCE * size])
     cnt = np.maximum(np.bincount(labels, minlength=k), 1).astype(np.float64)
     mean = np.stack([np.bincount(labels, weights=V[:, j], minlength=k) for j in range(3)], 1) / cnt[:, None]
     X = V - mean[labels]
@@ -345,12 +347,13 @@ def _flat_components(V: np.ndarray, labels: np.ndarray, k: int) -> np.ndarray:
     return np.sqrt(np.maximum(lam[:, 0], 0.0)) <= FLAT_TOLERANCE * np.sqrt(np.maximum(lam.sum(axis=1), 0.0))
 
 
-def _thickness(V: np.ndarray) -> float:
+def _thickness(V: np.ndarray, centre=None) -> float:
     """Extent of V across its plane of best fit (0 for a flat point set).
 
     The plane comes from the covariance of at most ~20k evenly spaced vertices (exact when the
-    set is flat, as long as they span the plane), the extent is measured on every vertex."""
-    centre = V.mean(axis=0)
+    set is flat, as long as they span the plane), the extent is measured on every vertex.
+    ``centre``: V's mean, if at hand."""
+    centre = V.mean(axis=0) if centre is None else centre
     step = max(1, len(V) // 20000)
     for sample in (V[::step], V) if step > 1 else (V,):
         X = sample - centre
@@ -519,7 +522,8 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
     # open fragments (loose triangles, strips: no vertex surrounded by faces) are left out; if
     # nothing else is left the mesh is refused. Then scan debris: parts with a tiny share of
     # the total area (the largest part is always kept).
-    flat = _flat_components(Vw, labels, k)
+    # (one group: gc is Vw's mean, which the flatness test of one component needs too)
+    flat = _flat_components(Vw, labels, k, centre=gc[0] if ng == 1 else None)
     fragment = np.zeros(k, bool)
     if boundary or degenerate_area or merged_close or repeated_faces:
         A = edges if reuse_edges else _edge_census(Fw, len(Vw))[3]
