@@ -6,7 +6,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .rows import next_corners
+from .rows import next_corners, take_rows
 
 __all__ = ["unique_edges", "edge_table", "edge_ids", "face_edges", "edge_lengths", "adjacency",
            "edge_csr", "components", "faces_around"]
@@ -123,7 +123,7 @@ def edge_csr(n: int, E: np.ndarray, weights: np.ndarray) -> sp.csr_matrix:
 
 def edge_lengths(V: np.ndarray, E: np.ndarray) -> np.ndarray:
     """(e,) Euclidean length of each edge."""
-    d = V[E[:, 1]] - V[E[:, 0]]
+    d = take_rows(V, E[:, 1]) - take_rows(V, E[:, 0])
     return np.sqrt(np.einsum("ij,ij->i", d, d))
 
 

@@ -109,6 +109,7 @@ class SkeletonRun:
         self.state = self._initialise()
         if self.params.centre:
             self._centre_and_edit()
+        self.state.face_cross = None              # (the centring's normals took it, if any)
         self.energy: list[float] = []
         self._solver_state: SolverState | None = None
         self._fit = self._fit_problem()
@@ -147,6 +148,10 @@ class SkeletonRun:
         nj = nb = nr = 0
         comp_meta = []
         one = self.n_components == 1
+        # one component: its first approximation takes the cleaning's edge census as its edge
+        # table (Fc is F, the census's triangles); the census is let go first (memory at 1M)
+        edges = self.mesh.edge_table() if one else None
+        self.mesh.edge_matrix = None
         for c in range(self.n_components):
             vids = order[starts[c]:starts[c + 1]]
             if one:                # the whole working mesh, in order: no renumbered copy
@@ -159,9 +164,8 @@ class SkeletonRun:
             # one component: the whole working mesh, whose exact inside test the later stages
             # build anyway (the first approximation may use it)
             fa = first_approximation(Vc, Fc, spacing=p.spacing, seed=p.seed,
-                                     inside=self._inside_test if one else None,
-                                     # (one component: Fc is F, the census's triangles)
-                                     edges=self.mesh.edge_table() if one else None)
+                                     inside=self._inside_test if one else None, edges=edges)
+            edges = None
             for stage, sec in fa.meta.get("timings", {}).items():
                 self.timings[stage] = self.timings.get(stage, 0.0) + sec
             if fa.region is None:             # one bone for the whole component
@@ -186,7 +190,6 @@ class SkeletonRun:
                                 "bones": int(len(fa.bones))})
             self.progress("first_approximation", (c + 1) / self.n_components)
         self.component_meta = comp_meta
-        self.mesh.edge_matrix = None          # (the census served the first approximation)
         self._bone_spacing = np.concatenate(spacing)
         areas = fn = None
         with self._timed("weights"):

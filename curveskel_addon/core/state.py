@@ -117,7 +117,6 @@ class PipelineState:
     _diag: float | None = None
     _bbox: tuple | None = None
     _key_order: np.ndarray | None = None
-    _energy_memo: tuple | None = None
 
     @property
     def size(self) -> float:
@@ -180,16 +179,8 @@ class PipelineState:
         return FitProblem(self.V, self.weights, self.joints, self.bones, self.bone, self.t)
 
     def energy(self) -> float:
-        """E of the current skeleton with its own mapping (the last value again when the
-        skeleton and mapping have not changed since: a stage that left them as they were)."""
-        now = (self.joints, self.bones, self.bone, self.t)
-        memo = self._energy_memo
-        if memo is not None and all(a.shape == b.shape and np.array_equal(a, b)
-                                    for a, b in zip(memo[0], now)):
-            return memo[1]
-        E = float(energy(self.problem()))
-        self._energy_memo = (tuple(np.array(a, copy=True) for a in now), E)
-        return E
+        """E of the current skeleton with its own mapping."""
+        return float(energy(self.problem()))
 
     def candidates(self, idx=None):
         """Candidate bones (CSR) of all vertices, or of the vertices ``idx``."""
