@@ -39,7 +39,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
 from .mapping import closest_on_bones
-from .rows import row_norm, take_rows
+from .rows import mul_rows, row_norm, take_rows
 
 __all__ = ["split_long_bones", "region_candidates", "fit_centreline", "fit_radii", "medial_samples",
            "chain_smoothness_rows", "chain_neighbours", "joint_adjacency", "centre_stage",
@@ -257,7 +257,7 @@ def fit_radii(V, w, X, bones, bone, t, *, smooth=0.01):
     X = np.asarray(X, np.float64)[:, :3]
     bones = np.asarray(bones, np.int64).reshape(-1, 2)
     i, j = bones[bone, 0], bones[bone, 1]
-    sig = t[:, None] * take_rows(X, i) + (1.0 - t[:, None]) * take_rows(X, j)
+    sig = mul_rows(t, take_rows(X, i)) + mul_rows(1.0 - t, take_rows(X, j))
     d = row_norm(V - sig)
     return _radii_for_distances(d, w, len(X), bones, bone, t, smooth)
 
@@ -503,7 +503,7 @@ def fit_radii_surface(V, w, joints, bones, cand=None, *, rounds=SURFACE_RADII_RO
     bones = np.asarray(bones, np.int64).reshape(-1, 2)
     bone, t, _ = closest_on_bones(V, X, bones, cand)
     i, j = bones[bone, 0], bones[bone, 1]
-    d = row_norm(V - (t[:, None] * take_rows(X, i) + (1.0 - t[:, None]) * take_rows(X, j)))
+    d = row_norm(V - (mul_rows(t, take_rows(X, i)) + mul_rows(1.0 - t, take_rows(X, j))))
     r = _radii_for_distances(d, w, len(X), bones, bone, t, 0.01)
     for _ in range(rounds):
         res = np.abs(d - (t * r[i] + (1.0 - t) * r[j]))

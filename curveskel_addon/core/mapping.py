@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import CurveSkelError
-from .rows import col_max, col_min, take_rows
+from .rows import col_max, col_min, mul_rows, take_rows
 
 __all__ = ["closest_on_bones"]
 
@@ -33,7 +33,7 @@ def _pair_closest(points, xi, xj):
     num = np.einsum("ij,ij->i", w, d)
     t = np.divide(num, dd, out=np.zeros_like(num), where=dd > 0)
     np.clip(t, 0.0, 1.0, out=t)
-    diff = w - t[:, None] * d
+    diff = w - mul_rows(t, d)
     return t, np.einsum("ij,ij->i", diff, diff)
 
 

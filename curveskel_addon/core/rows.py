@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["col_min", "col_max", "col_ptp", "row_norm", "row_sumsq", "row_cross", "take_rows",
-           "next_corners", "rows_differ"]
+           "next_corners", "rows_differ", "mul_rows"]
 
 
 def col_min(P) -> np.ndarray:
@@ -68,6 +68,18 @@ def row_cross(a, b) -> np.ndarray:
     c[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
     c[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
     return c
+
+
+def mul_rows(t, A) -> np.ndarray:
+    """``t[:, None] * A`` of (n,) and (n, c) float arrays (the same values), one column at a time
+    (numpy broadcasts the (n, 1) operand one row at a time: 2x slower on (n, 3))."""
+    t, A = np.asarray(t), np.asarray(A)
+    if A.ndim != 2 or t.ndim != 1 or len(t) != len(A):
+        return t[:, None] * A
+    out = np.empty(A.shape, np.result_type(t, A))
+    for k in range(A.shape[1]):
+        np.multiply(t, A[:, k], out=out[:, k])
+    return out
 
 
 def take_rows(A, idx) -> np.ndarray:

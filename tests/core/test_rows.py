@@ -50,3 +50,12 @@ def test_nan_and_empty_like_numpy():
     np.testing.assert_array_equal(col_max(X), X.max(axis=0))
     with pytest.raises(ValueError):
         col_min(np.zeros((0, 3)))
+
+
+def test_mul_rows_like_numpy():
+    from curveskel_addon.core.rows import mul_rows
+
+    rng, X = _arrays(3)
+    t = rng.normal(size=len(X)) * 1e3
+    assert np.array_equal(mul_rows(t, X), t[:, None] * X)
+    assert np.array_equal(mul_rows(1.0 - t, X[:, :2]), (1.0 - t[:, None]) * X[:, :2])
