@@ -230,11 +230,9 @@ def vertex_edges(V, F, face_of=None):
         face_of = faces_around(F, len(V))
     indptr, faces = face_of
     side = np.zeros(len(F))
-    corner = [take_rows(V, F[:, c]) for c in range(3)]
     for a, b in ((0, 1), (1, 2), (2, 0)):
-        d = corner[a] - corner[b]
+        d = take_rows(V, F[:, a]) - take_rows(V, F[:, b])
         np.maximum(side, np.einsum("ij,ij->i", d, d), out=side)
-    del corner, d
     side = np.sqrt(side)
     out = np.zeros(len(V))
     has = indptr[1:] > indptr[:-1]
