@@ -39,6 +39,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
 from .mapping import closest_on_bones
+from .rows import mul_rows, row_norm, take_rows
 
 __all__ = ["split_long_bones", "region_candidates", "fit_centreline", "fit_radii", "medial_samples",
            "chain_smoothness_rows", "chain_neighbours", "joint_adjacency", "centre_stage",
@@ -256,8 +257,8 @@ def fit_radii(V, w, X, bones, bone, t, *, smooth=0.01):
     X = np.asarray(X, np.float64)[:, :3]
     bones = np.asarray(bones, np.int64).reshape(-1, 2)
     i, j = bones[bone, 0], bones[bone, 1]
-    sig = t[:, None] * X[i] + (1.0 - t[:, None]) * X[j]
-    d = np.linalg.norm(V - sig, axis=1)
+    sig = mul_rows(t, take_rows(X, i)) + mul_rows(1.0 - t, take_rows(X, j))
+    d = row_norm(V - sig)
     return _radii_for_distances(d, w, len(X), bones, bone, t, smooth)
 
 
@@ -357,10 +358,13 @@ def _signed_depth(tree, inside, V=None, F=None, k: int = 8, ids=None, face_of=No
     return depth
 
 
-def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0, key=None, weights=None):
+def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0, key=None, weights=None,
+                   order=None, face_cross=None):
     """Medial points of (at most) k area-weighted vertex samples.
 
-    ``weights`` (n,): the vertices' areas if already known (any scale).
+    ``weights`` (n,): the vertices' areas if already known (any scale). ``order``:
+    ``np.argsort(key, kind="stable")`` if at hand; ``face_cross``: that of
+    :func:`.vertex_area.face_cross` (V, F), if at hand.
 
     Returns
     -------
@@ -375,13 +379,16 @@ def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0, key=None, weig
     n = len(V)
     subsample = n > MEDIAL_TREE_POINTS             # the balls' points too (see below)
     key = np.arange(n) if key is None else key
-    order = np.argsort(key, kind="stable") if n > k or subsample else None
-    a = vertex_areas(V, F) if weights is None and order is not None else weights
+    if order is None and (n > k or subsample):
+        order = np.argsort(key, kind="stable")
+    elif not (n > k or subsample):
+        order = None
+    a = vertex_areas(V, F, face_cross) if weights is None and order is not None else weights
     idx = np.arange(n) if n <= k else canonical_subset(key, k, seed, p=a, order=order)
     X = np.asarray(fa_joints)[:, :3]
     i, j = fa_bones[bone[idx], 0], fa_bones[bone[idx], 1]
     sig = t[idx, None] * X[i] + (1.0 - t[idx, None]) * X[j]
-    d = np.linalg.norm(V[idx] - sig, axis=1)
+    d = row_norm(V[idx] - sig)
     points = None
     if subsample:
         # The balls shrink against an area-weighted subsample of the surface (the samples
@@ -390,7 +397,7 @@ def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0, key=None, weig
         # (a ball can bulge through the subsample's gaps by their sagitta, ~gap^2 / radius).
         keep = canonical_subset(key, MEDIAL_TREE_POINTS, seed + 1, p=a, order=order)
         points = np.union1d(keep, idx)
-    balls = MedialBalls(V, F, points=points)
+    balls = MedialBalls(V, F, points=points, face_cross=face_cross)
     q = idx if points is None else np.searchsorted(points, idx)
     M, rho = balls.at(q, rho0=2.0 * d)          # (floored at 1e-12 of the size inside: no unit)
     return idx, M, rho, balls
@@ -433,7 +440,10 @@ def centre_stage(state, spacing_abs, *, smooth, seed=0):
     V, F = state.V, state.F
     idx, M, rho, balls = medial_samples(V, F, state.joints, state.bones, state.bone, state.t,
                                         MEDIAL_SAMPLES, seed=seed, key=state.key,
-                                        weights=state.areas)
+                                        weights=state.areas,
+                                        order=None if state.key is None else state.key_order,
+                                        face_cross=state.face_cross)
+    state.face_cross = None                          # (only the surface normals needed it)
     state.medial = (M, rho)
     state.medial_points = int(len(balls.pts))       # the surface points the balls shrank against
     # contract the tiny bones (direction noise), then split the bones of branching regions
@@ -493,7 +503,7 @@ def fit_radii_surface(V, w, joints, bones, cand=None, *, rounds=SURFACE_RADII_RO
     bones = np.asarray(bones, np.int64).reshape(-1, 2)
     bone, t, _ = closest_on_bones(V, X, bones, cand)
     i, j = bones[bone, 0], bones[bone, 1]
-    d = np.linalg.norm(V - (t[:, None] * X[i] + (1.0 - t[:, None]) * X[j]), axis=1)
+    d = row_norm(V - (mul_rows(t, take_rows(X, i)) + mul_rows(1.0 - t, take_rows(X, j))))
     r = _radii_for_distances(d, w, len(X), bones, bone, t, 0.01)
     for _ in range(rounds):
         res = np.abs(d - (t * r[i] + (1.0 - t) * r[j]))

@@ -36,9 +36,10 @@ from scipy.sparse.csgraph import connected_components
 
 from .mesh_graph import faces_around
 from .quality import orthonormal_frame
+from .rows import row_cross, take_rows
 
-__all__ = ["section_centroids", "section_loops", "vertex_edges", "polish_chains", "STEP", "ROUNDS", "REACH",
-           "FADE", "TIP_REACH", "SMOOTH", "LEAF_STEP"]
+__all__ = ["section_centroids", "section_loops", "vertex_edges", "polish_chains", "STEP", "ROUNDS",
+           "REACH", "FADE", "TIP_REACH", "SMOOTH", "LEAF_STEP"]
 
 #: Fraction of the way to the centroid a joint moves per round.
 STEP = 0.5
@@ -166,7 +167,8 @@ def section_loops(V, F, X, T, reach, *, face_of=None, vertex_edge=None):
     q = np.stack([np.einsum("fd,fd->f", rel[:, 1], e1), np.einsum("fd,fd->f", rel[:, 1], e2)], 1)
     # orient each segment so that the section's inside lies on its left: the face's outward
     # normal, projected into the plane, points to the right of p -> q
-    fn = np.cross(V[Fc[:, 1]] - V[Fc[:, 0]], V[Fc[:, 2]] - V[Fc[:, 0]])
+    fn = row_cross(take_rows(V, Fc[:, 1]) - take_rows(V, Fc[:, 0]),
+                   take_rows(V, Fc[:, 2]) - take_rows(V, Fc[:, 0]))
     fx, fy = np.einsum("fd,fd->f", fn, e1), np.einsum("fd,fd->f", fn, e2)
     d = q - p
     flip = d[:, 1] * fx - d[:, 0] * fy < 0
@@ -249,7 +251,7 @@ def vertex_edges(V, F, face_of=None):
     indptr, faces = face_of
     side = np.zeros(len(F))
     for a, b in ((0, 1), (1, 2), (2, 0)):
-        d = V[F[:, a]] - V[F[:, b]]
+        d = take_rows(V, F[:, a]) - take_rows(V, F[:, b])
         np.maximum(side, np.einsum("ij,ij->i", d, d), out=side)
     side = np.sqrt(side)
     out = np.zeros(len(V))

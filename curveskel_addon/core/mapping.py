@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import CurveSkelError
+from .rows import col_max, col_min, mul_rows, take_rows
 
 __all__ = ["closest_on_bones"]
 
@@ -32,8 +33,14 @@ def _pair_closest(points, xi, xj):
     num = np.einsum("ij,ij->i", w, d)
     t = np.divide(num, dd, out=np.zeros_like(num), where=dd > 0)
     np.clip(t, 0.0, 1.0, out=t)
-    diff = w - t[:, None] * d
+    diff = w - mul_rows(t, d)
     return t, np.einsum("ij,ij->i", diff, diff)
+
+
+def _on_bones(points, X, bones, pb):
+    """:func:`_pair_closest` of each point to its bone ``pb`` (gathers by ``take``: the same
+    values, 2-3x faster than fancy indexing)."""
+    return _pair_closest(points, take_rows(X[bones[:, 0]], pb), take_rows(X[bones[:, 1]], pb))
 
 
 def closest_on_bones(points, joints, bones, candidates=None):
@@ -102,7 +109,7 @@ def closest_on_bones(points, joints, bones, candidates=None):
     if len(one):
         pb = ids[indptr[one]]
         bone[one] = pb
-        t[one], d2[one] = _pair_closest(P[one], X[bones[pb, 0]], X[bones[pb, 1]])
+        t[one], d2[one] = _on_bones(P if len(one) == n else take_rows(P, one), X, bones, pb)
     many = np.flatnonzero(cnt > 1)
     if len(many):
         c = cnt[many]
@@ -111,7 +118,7 @@ def closest_on_bones(points, joints, bones, candidates=None):
         starts = np.cumsum(c) - c
         local = np.arange(len(pt)) - np.repeat(starts, c)
         pb = ids[np.repeat(indptr[many], c) + local]
-        pt_t, pt_d2 = _pair_closest(P[pt], X[bones[pb, 0]], X[bones[pb, 1]])
+        pt_t, pt_d2 = _on_bones(take_rows(P, pt), X, bones, pb)
         mins = np.minimum.reduceat(pt_d2, starts)
         pos = np.arange(len(pt))
         first = np.minimum.reduceat(np.where(pt_d2 == np.repeat(mins, c), pos, len(pt)), starts)
@@ -135,8 +142,8 @@ def _all_bones(P, X, bones):
     n, nb = len(P), len(bones)
     bone = np.zeros(n, np.int64)
     if n == 0 or nb == 1:
-        return (bone, *_pair_closest(P, X[bones[bone, 0]], X[bones[bone, 1]]))
-    o = 0.5 * (P.min(axis=0) + P.max(axis=0))
+        return (bone, *_on_bones(P, X, bones, bone))
+    o = 0.5 * (col_min(P) + col_max(P))
     A = X[bones[:, 1]] - o
     D = X[bones[:, 0]] - X[bones[:, 1]]
     DD = np.einsum("ij,ij->i", D, D)
@@ -177,5 +184,5 @@ def _all_bones(P, X, bones):
         rows = np.concatenate(rows)
         indptr = np.r_[0, np.cumsum(np.concatenate(counts))]
         bone[rows] = closest_on_bones(P[rows], X, bones, candidates=(indptr, np.concatenate(cands)))[0]
-    t, d2 = _pair_closest(P, X[bones[bone, 0]], X[bones[bone, 1]])
+    t, d2 = _on_bones(P, X, bones, bone)
     return bone, t, d2

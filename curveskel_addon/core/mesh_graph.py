@@ -6,6 +6,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from .rows import next_corners, take_rows
+
 __all__ = ["unique_edges", "edge_table", "edge_ids", "face_edges", "edge_lengths", "adjacency",
            "edge_csr", "components", "faces_around"]
 
@@ -47,7 +49,7 @@ def edge_table(F: np.ndarray, n: int | None = None) -> tuple[np.ndarray, np.ndar
         return np.zeros((0, 2), np.int64), np.zeros(0, np.int64)
     n = int(F.max()) + 1 if n is None else int(n)
     a = F.ravel()
-    b = F[:, [1, 2, 0]].ravel()
+    b = next_corners(F).ravel()
     lo = np.minimum(a, b)
     hi = np.maximum(a, b)
     idx = np.int32 if n < 2**31 - 1 else np.int64
@@ -104,7 +106,7 @@ def face_edges(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     E, _ = edge_table(F)
     if len(F) == 0:
         return E, np.zeros((0, 3), np.int64)
-    return E, edge_ids(E, F.ravel(), F[:, [1, 2, 0]].ravel()).reshape(-1, 3)
+    return E, edge_ids(E, F.ravel(), next_corners(F).ravel()).reshape(-1, 3)
 
 
 def edge_csr(n: int, E: np.ndarray, weights: np.ndarray) -> sp.csr_matrix:
@@ -121,7 +123,7 @@ def edge_csr(n: int, E: np.ndarray, weights: np.ndarray) -> sp.csr_matrix:
 
 def edge_lengths(V: np.ndarray, E: np.ndarray) -> np.ndarray:
     """(e,) Euclidean length of each edge."""
-    d = V[E[:, 1]] - V[E[:, 0]]
+    d = take_rows(V, E[:, 1]) - take_rows(V, E[:, 0])
     return np.sqrt(np.einsum("ij,ij->i", d, d))
 
 

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import CurveSkelError
+from .rows import col_max, col_min, next_corners, row_sumsq, rows_differ, take_rows
 
 __all__ = ["CleanMesh", "clean_mesh", "triangulate", "MERGE_TOLERANCE", "FLAT_TOLERANCE"]
 
@@ -56,6 +57,10 @@ class CleanMesh:
     components : (k, labels) or None
         The connected components of the working mesh, as
         :func:`.mesh_graph.components` returns them (computed here anyway).
+    edge_matrix : scipy.sparse.csr_matrix or None
+        The edge census of the working triangles (row a, column b > a: the sides a->b plus the
+        sides b->a << 32), when no repair changed them after it (else None): see
+        :meth:`edge_table`.
     """
 
     V: np.ndarray
@@ -63,6 +68,17 @@ class CleanMesh:
     work_index: np.ndarray
     info: dict = field(default_factory=dict)
     components: tuple | None = None
+    edge_matrix: object = None
+
+    def edge_table(self):
+        """:func:`.mesh_graph.edge_table` of (V, F) from the census (the same arrays), or None
+        if the census no longer describes F."""
+        A = self.edge_matrix
+        if A is None:
+            return None
+        rows = np.repeat(np.arange(A.shape[0], dtype=np.int64), np.diff(A.indptr))
+        E = np.stack([rows, A.indices.astype(np.int64)], axis=1)
+        return E, ((A.data & 0xFFFFFFFF) + (A.data >> 32)).astype(np.int64)
 
 
 def triangulate(faces) -> np.ndarray:
@@ -121,9 +137,11 @@ def _merge_identical(V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     structured rows and is about 10x slower on a million vertices.
     """
     order = np.lexsort((V[:, 2], V[:, 1], V[:, 0]))
-    Vs = V[order]
+    Vs = take_rows(V, order)
     starts = np.ones(len(V), bool)
-    starts[1:] = np.any(Vs[1:] != Vs[:-1], axis=1)
+    starts[1:] = rows_differ(Vs[1:], Vs[:-1])
+    if starts.all():                  # no two alike (the usual case): what the rest would give
+        return V.copy(), np.arange(len(V), dtype=np.int64)
     group = np.cumsum(starts) - 1                       # group id in sorted order
     # Number groups by their first input index so the working mesh keeps the input's order.
     first_min = np.minimum.reduceat(order, np.flatnonzero(starts))
@@ -132,7 +150,7 @@ def _merge_identical(V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     rank[by_first] = np.arange(len(first_min))
     inverse = np.empty(len(V), np.int64)
     inverse[order] = rank[group]
-    return V[first_min[by_first]], inverse
+    return take_rows(V, first_min[by_first]), inverse
 
 
 
@@ -145,7 +163,7 @@ def _edge_census(F: np.ndarray, n: int):
     import scipy.sparse as sp
 
     a = F.ravel()
-    b = F[:, [1, 2, 0]].ravel()
+    b = next_corners(F).ravel()
     fwd = a < b
     lo, hi = np.where(fwd, a, b), np.where(fwd, b, a)
     idx = np.int32 if n < 2**31 - 1 else np.int64
@@ -161,7 +179,7 @@ def _edge_census(F: np.ndarray, n: int):
 def _open_edge_vertices(F: np.ndarray, n: int) -> np.ndarray:
     """Indices of the vertices on edges used by one face only."""
     a = F.ravel()
-    b = F[:, [1, 2, 0]].ravel()
+    b = next_corners(F).ravel()
     key = np.minimum(a, b) * np.int64(n) + np.maximum(a, b)
     k, cnt = np.unique(key, return_counts=True)
     k = k[cnt == 1]
@@ -224,7 +242,7 @@ def _consistent_winding(F: np.ndarray, n: int, weight: np.ndarray):
 
     m = len(F)
     a = F.ravel()
-    b = F[:, [1, 2, 0]].ravel()
+    b = next_corners(F).ravel()
     face = np.repeat(np.arange(m), 3)
     key = np.minimum(a, b) * np.int64(n) + np.maximum(a, b)
     order = np.argsort(key, kind="stable")
@@ -279,7 +297,7 @@ def _cap_holes(V: np.ndarray, F: np.ndarray, labels: np.ndarray):
 
     n = len(V)
     a = F.ravel()
-    b = F[:, [1, 2, 0]].ravel()
+    b = next_corners(F).ravel()
     key = np.minimum(a, b) * np.int64(n) + np.maximum(a, b)
     _, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
     one = cnt[inv] == 1
@@ -311,13 +329,13 @@ def _boundary_vertices(A) -> np.ndarray:
     return np.concatenate([rows[one], A.indices[one]])
 
 
-def _flat_components(V: np.ndarray, labels: np.ndarray, k: int) -> np.ndarray:
+def _flat_components(V: np.ndarray, labels: np.ndarray, k: int, centre=None) -> np.ndarray:
     """(k,) bool: the components whose vertices lie in one plane (RMS distance from their plane
     of best fit at most ``FLAT_TOLERANCE`` of their RMS radius)."""
     if k == 1:
-        centre = V.mean(axis=0)
-        size = float(np.sqrt(((V - centre) ** 2).sum(axis=1).mean()))
-        return np.array([_thickness(V) <= FLAT_TOLERANCE * size])
+        centre = V.mean(axis=0) if centre is None else centre     # (V's mean, if at hand)
+        size = float(np.sqrt(row_sumsq(V - centre).mean()))
+        return np.array([_thickness(V, centre) <= FLAT_TOLERANCE * size])
     cnt = np.maximum(np.bincount(labels, minlength=k), 1).astype(np.float64)
     mean = np.stack([np.bincount(labels, weights=V[:, j], minlength=k) for j in range(3)], 1) / cnt[:, None]
     X = V - mean[labels]
@@ -329,12 +347,13 @@ def _flat_components(V: np.ndarray, labels: np.ndarray, k: int) -> np.ndarray:
     return np.sqrt(np.maximum(lam[:, 0], 0.0)) <= FLAT_TOLERANCE * np.sqrt(np.maximum(lam.sum(axis=1), 0.0))
 
 
-def _thickness(V: np.ndarray) -> float:
+def _thickness(V: np.ndarray, centre=None) -> float:
     """Extent of V across its plane of best fit (0 for a flat point set).
 
     The plane comes from the covariance of at most ~20k evenly spaced vertices (exact when the
-    set is flat, as long as they span the plane), the extent is measured on every vertex."""
-    centre = V.mean(axis=0)
+    set is flat, as long as they span the plane), the extent is measured on every vertex.
+    ``centre``: V's mean, if at hand."""
+    centre = V.mean(axis=0) if centre is None else centre
     step = max(1, len(V) // 20000)
     for sample in (V[::step], V) if step > 1 else (V,):
         X = sample - centre
@@ -370,8 +389,9 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
     if V.dtype.kind not in "fiu":
         raise CurveSkelError(f"vertex coordinates must be numbers, got dtype {V.dtype}")
     V = V.astype(np.float64)
-    bad = ~np.all(np.isfinite(V), axis=1)
-    if bad.any():
+    finite = np.isfinite(V)
+    if not finite.all():
+        bad = ~np.all(finite, axis=1)
         raise CurveSkelError(
             f"{int(bad.sum())} vertices have NaN or infinite coordinates (first: {int(np.argmax(bad))})")
     n = len(V)
@@ -397,7 +417,7 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
         raise CurveSkelError("every face is degenerate (repeated vertices): nothing to skeletonize")
     used = np.bincount(Fm.ravel(), minlength=len(uniq)) > 0
     Vu = uniq[used]
-    size = float(np.linalg.norm(Vu.max(axis=0) - Vu.min(axis=0)))
+    size = float(np.linalg.norm(col_max(Vu) - col_min(Vu)))
     if size == 0.0:
         raise CurveSkelError("every face has zero area (all vertices at one point): nothing to skeletonize")
     tol = MERGE_TOLERANCE * size
@@ -420,10 +440,8 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
         if repeated_faces:
             boundary, nonmanifold, inconsistent, edges = _edge_census(Fm, len(uniq))
 
-    P = uniq[Fm]
-    T0 = P[:, 0]
-    e1, e2 = P[:, 1] - T0, P[:, 2] - T0
-    del P
+    T0 = take_rows(uniq, Fm[:, 0])
+    e1, e2 = take_rows(uniq, Fm[:, 1]) - T0, take_rows(uniq, Fm[:, 2]) - T0
     cross = _cross(e1, e2)
     dbl_area = np.sqrt(np.einsum("ij,ij->i", cross, cross))
     e3 = e2 - e1
@@ -504,7 +522,8 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
     # open fragments (loose triangles, strips: no vertex surrounded by faces) are left out; if
     # nothing else is left the mesh is refused. Then scan debris: parts with a tiny share of
     # the total area (the largest part is always kept).
-    flat = _flat_components(Vw, labels, k)
+    # (one group: gc is Vw's mean, which the flatness test of one component needs too)
+    flat = _flat_components(Vw, labels, k, centre=gc[0] if ng == 1 else None)
     fragment = np.zeros(k, bool)
     if boundary or degenerate_area or merged_close or repeated_faces:
         A = edges if reuse_edges else _edge_census(Fw, len(Vw))[3]
@@ -583,4 +602,8 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
         info["small_components_dropped"] = small_dropped
         info["small_components_vertices"] = small_vertices
         info["small_components_area_share"] = small_share
-    return CleanMesh(Vw, Fw, work_index, info, components=(int(k), labels))
+    # the census still describes the working triangles: no face or vertex dropped or added
+    # since (turning a face over keeps its edges)
+    same_edges = reuse_edges and not drop.any() and not holes
+    return CleanMesh(Vw, Fw, work_index, info, components=(int(k), labels),
+                     edge_matrix=edges if same_edges else None)

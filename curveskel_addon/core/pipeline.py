@@ -44,10 +44,11 @@ from .mesh_input import clean_mesh
 from .params import SkeletonParams, check_params
 from .problem import FitProblem, SolverState
 from .reeb import first_approximation
+from .rows import col_max, col_min
 from .skeleton import Skeleton
 from .solvers import solve_steps
 from .state import PipelineState, canonical_subset
-from .vertex_area import vertex_areas
+from .vertex_area import face_cross, vertex_areas
 
 __all__ = ["skeletonize", "SkeletonRun"]
 
@@ -103,7 +104,7 @@ class SkeletonRun:
             # Work about the centre of the bounding box, joints moved back on output: far from
             # the origin, expanded squares (|a|^2 - 2ab + |b|^2) lose the digits that decide an
             # edit (a horse moved by 1e6 of its size changed by 0.006 of it; issue 12).
-            self.origin = (self.mesh.V.min(axis=0) + self.mesh.V.max(axis=0)) / 2
+            self.origin = (col_min(self.mesh.V) + col_max(self.mesh.V)) / 2
             self.mesh.V = self.mesh.V - self.origin
             self._input_V = np.asarray(V, dtype=np.float64) - self.origin
         with self._timed("components"):
@@ -113,6 +114,7 @@ class SkeletonRun:
         self.state = self._initialise()
         if self.params.centre:
             self._centre_and_edit()
+        self.state.face_cross = None              # (the centring's normals took it, if any)
         self.energy: list[float] = []
         self._solver_state: SolverState | None = None
         self._fit = self._fit_problem()
@@ -150,16 +152,25 @@ class SkeletonRun:
         key = np.zeros(len(V))
         nj = nb = nr = 0
         comp_meta = []
+        one = self.n_components == 1
+        # one component: its first approximation takes the cleaning's edge census as its edge
+        # table (Fc is F, the census's triangles); the census is let go first (memory at 1M)
+        edges = self.mesh.edge_table() if one else None
+        self.mesh.edge_matrix = None
         for c in range(self.n_components):
             vids = order[starts[c]:starts[c + 1]]
-            local[vids] = np.arange(len(vids))
-            Fc = local[F[forder[fstarts[c]:fstarts[c + 1]]]]
+            if one:                # the whole working mesh, in order: no renumbered copy
+                Vc, Fc = V, F
+            else:
+                local[vids] = np.arange(len(vids))
+                Vc, Fc = V[vids], local[F[forder[fstarts[c]:fstarts[c + 1]]]]
             # one seed for every component: seed 0 starts each pole search at the vertex farthest from its
             # centroid, so the skeleton does not depend on how the components are numbered
             # one component: the whole working mesh, whose exact inside test the later stages
             # build anyway (the first approximation may use it)
-            fa = first_approximation(V[vids], Fc, spacing=p.spacing, seed=p.seed,
-                                     inside=self._inside_test if self.n_components == 1 else None)
+            fa = first_approximation(Vc, Fc, spacing=p.spacing, seed=p.seed,
+                                     inside=self._inside_test if one else None, edges=edges)
+            edges = None
             for stage, sec in fa.meta.get("timings", {}).items():
                 self.timings[stage] = self.timings.get(stage, 0.0) + sec
             if fa.region is None:             # one bone for the whole component
@@ -185,10 +196,11 @@ class SkeletonRun:
             self.progress("first_approximation", (c + 1) / self.n_components)
         self.component_meta = comp_meta
         self._bone_spacing = np.concatenate(spacing)
-        areas = None
+        areas = fn = None
         with self._timed("weights"):
             if p.area_weighted:
-                areas = vertex_areas(V, F)
+                fn = face_cross(V, F)           # the centring's surface normals use it too
+                areas = vertex_areas(V, F, fn)
                 # mean 1: E stays on the vertex-sum scale
                 w = areas * (len(V) / max(areas.sum(), 1e-300))
             else:
@@ -196,6 +208,11 @@ class SkeletonRun:
         st = PipelineState(V, F, w, np.concatenate(joints), np.concatenate(bones), bone, t, region,
                            np.unique(np.concatenate(pairs), axis=0))
         st.areas = areas
+        if self.n_components == 1 and "size" in comp_meta[0]:
+            # the one component is the working mesh, its vertices in order: the size its first
+            # approximation measured is the state's (the same minimum enclosing ball)
+            st._size = float(comp_meta[0]["size"])
+        st.face_cross = fn
         st._inside = self._inside
         st.key = np.where(np.isfinite(key), key, 0.0)
         st.record("initialise", sum(self.timings.get(k, 0.0) for k in
@@ -227,7 +244,7 @@ class SkeletonRun:
         self.fit_subset = None
         n = len(pr.points)
         if p.area_weighted and p.max_fit_points and n > p.max_fit_points:
-            idx = canonical_subset(st.key, p.max_fit_points, p.seed)
+            idx = canonical_subset(st.key, p.max_fit_points, p.seed, order=st.key_order)
             self.fit_subset = idx
             pr = FitProblem(pr.points[idx], pr.weights[idx] * (n / p.max_fit_points), pr.joints,
                             pr.bones, pr.bone[idx], pr.t[idx], pr.meta)
@@ -362,7 +379,7 @@ class SkeletonRun:
             # a uniform draw, each vertex with its area: an unbiased estimate of the area-weighted
             # sum whatever the share drawn (a draw with probabilities by area is not one when it
             # takes most of the vertices)
-            idx = canonical_subset(st.key, SAMPLES, self.params.seed + 2)
+            idx = canonical_subset(st.key, SAMPLES, self.params.seed + 2, order=st.key_order)
         else:
             idx = np.arange(n)
         w = st.weights[idx]
@@ -452,7 +469,7 @@ def _into_box(st) -> None:
     A joint outside the box is outside the shape. On a tiny flat solid (8-40 hull points,
     issue 12's property test) the fit can push one there, and the medial point a bone is split
     at can lie off a shape that has almost no inside."""
-    st.joints[:, :3] = np.clip(st.joints[:, :3], st.V.min(axis=0), st.V.max(axis=0))
+    st.joints[:, :3] = np.clip(st.joints[:, :3], *st.bbox)
 
 
 def _flip_radii(joints) -> np.ndarray:

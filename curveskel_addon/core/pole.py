@@ -180,13 +180,13 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int,
     E = np.asarray(E, dtype=np.int64).reshape(-1, 2)
     if len(np.asarray(lengths)) != len(E):
         raise CurveSkelError(f"find_pole: {len(E)} edges but {len(lengths)} lengths")
-    frame = _chiral_frame(V)
+    mom = _moments(V)                     # shared by the chiral frame and the mirror test
+    frame = _chiral_frame(V, mom)
     if seed == 0:
         # The default start is the vertex farthest from the centroid (the tip of some part):
         # the same vertex whatever the order of the vertices, their position, scale or rotation
         # (issue 12). Any other seed draws the paper's random vertex.
-        c = V.mean(axis=0)
-        v1 = _argmax_untied(np.einsum("ij,ij->i", V - c, V - c), V, frame)
+        v1 = _argmax_untied(mom[1], V, frame)
     else:
         v1 = int(np.random.default_rng(seed).integers(n))
     if len(E) == 0:
@@ -209,7 +209,7 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int,
         score = np.einsum("ij,ij->i", V[cand] - V[v2], V[cand] - V[v2])
     pole = int(cand[np.argmax(score)])
     if mirror and seed == 0:
-        twin = _mirror_twin(V, pole, frame)
+        twin = _mirror_twin(V, pole, frame, mom)
         if twin is not None:
             twin, side = twin
             # f: the distance to the nearer of the pole and its mirror image
@@ -224,7 +224,7 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int,
     return pole, geodesic_from(A, pole)[:n]
 
 
-def bilateral_plane(V, n_points: int = MIRROR_POINTS):
+def bilateral_plane(V, n_points: int = MIRROR_POINTS, *, _mom=None):
     """The shape's mirror plane if it has exactly one among its principal planes, else None.
 
     A principal plane through the centroid is a mirror when the reflected points lie within
@@ -248,12 +248,24 @@ def bilateral_plane(V, n_points: int = MIRROR_POINTS):
     [1.0, 0.0, 0.0]
     >>> bilateral_plane(np.array([[x, y, z] for x in (-1., 1) for y in (-2., 2) for z in (-3., 3)]))
     """
-    c, planes = principal_mirrors(V, n_points)
+    c, planes = principal_mirrors(V, n_points, _mom=_mom)
     mirrors = [e for score, e in planes if score <= MIRROR_TOL]
     return (c, mirrors[0]) if len(mirrors) == 1 else None
 
 
-def principal_mirrors(V, n_points: int = MIRROR_POINTS):
+def _moments(V):
+    """(centroid, squared distances from it, principal variances, principal axes) of V (n, 3)
+    float64 (the last two None below 4 points): computed once for the pole search's chiral
+    frame, its first vertex and the mirror test, which all use them."""
+    c = V.mean(axis=0)
+    r2 = np.einsum("ij,ij->i", V - c, V - c)
+    lam = axes = None
+    if len(V) >= 4:
+        lam, axes = np.linalg.eigh(np.cov((V - c).T))
+    return c, r2, lam, axes
+
+
+def principal_mirrors(V, n_points: int = MIRROR_POINTS, *, _mom=None):
     """(centre, [(score, normal)] for the three principal planes through the centroid): score is
     the mean distance from the reflected points to the nearest point, over the rms distance of
     the points from the centroid (0 for an exact mirror image; whatever the scale). At most
@@ -262,14 +274,17 @@ def principal_mirrors(V, n_points: int = MIRROR_POINTS):
     from scipy.spatial import cKDTree
 
     V = np.asarray(V, np.float64)
-    c = V.mean(axis=0)
-    r2 = np.einsum("ij,ij->i", V - c, V - c)
+    if _mom is None:                      # (else :func:`_moments` of V, from the pole search)
+        c = V.mean(axis=0)
+        r2 = np.einsum("ij,ij->i", V - c, V - c)
+    else:
+        c, r2 = _mom[0], _mom[1]
     rms = float(np.sqrt(r2.mean()))
     if len(V) < 4 or rms <= 0:
         return c, [(np.inf, np.array([1.0, 0.0, 0.0]))]
     order = np.argsort(r2, kind="stable")
     P = V[order[np.unique(np.linspace(0, len(V) - 1, min(n_points, len(V))).astype(np.int64))]]
-    _, axes = np.linalg.eigh(np.cov((V - c).T))
+    _, axes = np.linalg.eigh(np.cov((V - c).T)) if _mom is None else _mom[2:]
     tree = cKDTree(P)
     planes = []
     for k in range(3):
@@ -279,7 +294,7 @@ def principal_mirrors(V, n_points: int = MIRROR_POINTS):
     return c, planes
 
 
-def _mirror_twin(V, pole, frame):
+def _mirror_twin(V, pole, frame, mom=None):
     """(twin, side): the vertex nearest the pole's reflection across the shape's mirror plane,
     and each vertex's signed distance from the plane in units of the rms radius, the sign taken
     from the shape's own chiral plane (:func:`_chiral_frame`: the same in any pose); None if the
@@ -288,7 +303,7 @@ def _mirror_twin(V, pole, frame):
     a capsule or a sphere is its own mirror image across several planes, one of them across its
     middle, and f from the two ends of a bar (or two corners of one end) bent its tip joint off
     the axis by half the bar's width."""
-    plane = bilateral_plane(V)
+    plane = bilateral_plane(V, _mom=mom)
     if plane is None:
         return None
     c, e = plane
@@ -299,21 +314,20 @@ def _mirror_twin(V, pole, frame):
     normal = frame[1]
     if normal is not None and float(normal @ e) < 0:
         e = -e
-    rms = float(np.sqrt(np.einsum("ij,ij->i", V - c, V - c).mean()))
+    rms = float(np.sqrt((np.einsum("ij,ij->i", V - c, V - c) if mom is None else mom[1]).mean()))
     side = (V - c) @ e / rms if normal is not None and rms > 0 else np.zeros(len(V))
     return twin, side
 
 
-def _chiral_frame(V):
+def _chiral_frame(V, mom=None):
     """(centre, normal) of a plane of the shape itself: through the centroid, spanned by the
     two principal axes along which the shape is most lopsided (largest |third moment|), each
     pointing to its heavier tail. The side of this plane tells mirror-image points apart in a
     way no rotation, move or scale of the mesh changes (a mirror plane's own normal has no
     third moment, so it is not one of the two)."""
-    c = V.mean(axis=0)
+    c, _, lam, axes = _moments(V) if mom is None else mom
     if len(V) < 4:
         return c, None
-    lam, axes = np.linalg.eigh(np.cov((V - c).T))
     Y = (V - c) @ axes
     m3 = np.einsum("ij,ij,ij->j", Y, Y, Y) / len(V)
     a, b = np.argsort(-np.abs(m3))[:2]

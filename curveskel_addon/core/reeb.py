@@ -78,6 +78,7 @@ from .interior import InteriorGrid
 from .meb import min_enclosing_ball, size_of
 from .mesh_graph import edge_csr, edge_ids, edge_lengths, edge_table
 from .pole import find_pole
+from .rows import next_corners
 
 #: f through the inside as well as over the surface on components with handles (:mod:`.interior`).
 INTERIOR_PATHS = True
@@ -184,7 +185,7 @@ def _contours(V, F, E, f, s, K) -> _Contours:
     mt = np.flatnonzero((b0 != b1) | (b1 != b2))
     Fm = F[mt]
     tbm = np.stack([b0[mt], b1[mt], b2[mt]], axis=1)
-    FEm = edge_ids(E, Fm.ravel(), Fm[:, [1, 2, 0]].ravel()).reshape(-1, 3)
+    FEm = edge_ids(E, Fm.ravel(), next_corners(Fm).ravel()).reshape(-1, 3)
     order = np.argsort(tbm, axis=1, kind="stable")
     ob = np.take_along_axis(tbm, order, axis=1)
     ns = ob[:, 2] - ob[:, 0]
@@ -423,7 +424,8 @@ def _expected_cycles(n, E, ecount, m):
     return max((2 - chi) // 2, 0)
 
 
-def first_approximation(V, F, *, spacing: float, seed: int, inside=None) -> FirstApproximation:
+def first_approximation(V, F, *, spacing: float, seed: int, inside=None,
+                        edges=None) -> FirstApproximation:
     """First approximation of the curve-skeleton of ONE connected component (paper 4.1).
 
     Parameters
@@ -443,6 +445,8 @@ def first_approximation(V, F, *, spacing: float, seed: int, inside=None) -> Firs
         Returns an exact inside test of (V, F) (:class:`.quality.InsideTest`) when called:
         where one is built anyway, a surface with handles whose joints are all inside skips
         the coarse grid that looks for joints in its holes.
+    edges : (E (e, 2), count (e,)), optional
+        :func:`.mesh_graph.edge_table` of (V, F), if at hand (the cleaning's edge census).
 
     Returns
     -------
@@ -465,7 +469,7 @@ def first_approximation(V, F, *, spacing: float, seed: int, inside=None) -> Firs
     n, m = len(V), len(F)
     timings = {}
     t0 = time.perf_counter()
-    E, ecount = edge_table(F, n)
+    E, ecount = edge_table(F, n) if edges is None else edges
     expected = _expected_cycles(n, E, ecount, m)
     fa = _approximate(V, F, E, expected, spacing, seed, None, timings, t0)
     if INTERIOR_PATHS and expected and fa.region is not None:

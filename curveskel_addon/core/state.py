@@ -110,11 +110,14 @@ class PipelineState:
     medial_points: int = 0          # surface points the medial balls shrank against
     key: np.ndarray | None = None   # (n,) numbering-free order of the vertices (geodesic f)
     areas: np.ndarray | None = None  # (n,) vertex areas, if the weights step computed them
+    face_cross: np.ndarray | None = None  # (m, 3) vertex_area.face_cross, until the centring
     _inside: object = None
     _size: float | None = None
     _faces_around: tuple | None = None
     _vertex_edges: np.ndarray | None = None
     _diag: float | None = None
+    _bbox: tuple | None = None
+    _key_order: np.ndarray | None = None
 
     @property
     def size(self) -> float:
@@ -133,11 +136,30 @@ class PipelineState:
         return self._inside
 
     @property
+    def key_order(self) -> np.ndarray:
+        """``np.argsort(key, kind="stable")``, once (the order every :func:`canonical_subset`
+        of the vertices draws in)."""
+        if self._key_order is None:
+            self._key_order = np.argsort(np.asarray(self.key, np.float64), kind="stable")
+        return self._key_order
+
+    @property
+    def bbox(self) -> tuple:
+        """(lo (3,), hi (3,)): the working vertices' bounding box, once."""
+        if self._bbox is None:
+            from .rows import col_max, col_min
+            self._bbox = (col_min(self.V), col_max(self.V))
+        return self._bbox
+
+    @property
     def diag(self) -> float:
-        """The working vertices' bounding-box diagonal (the unit of the fold measure), once."""
+        """The working vertices' bounding-box diagonal (the unit of the fold measure), once
+        (:func:`.quality.bbox_diagonal`, from :attr:`bbox`)."""
         if self._diag is None:
-            from .quality import bbox_diagonal
-            self._diag = bbox_diagonal(self.V)
+            if len(self.V) == 0:
+                return 0.0
+            lo, hi = self.bbox
+            self._diag = float(np.linalg.norm(hi - lo))
         return self._diag
 
     @property

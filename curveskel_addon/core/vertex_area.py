@@ -4,14 +4,24 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["vertex_areas"]
+from .rows import row_cross, row_norm, take_rows
+
+__all__ = ["vertex_areas", "face_cross"]
 
 
-def vertex_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+def face_cross(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(m, 3) ``(v1 - v0) x (v2 - v0)`` of every triangle: twice its area times its unit normal
+    (outward on a consistently oriented closed surface). Computed once per run and shared by the
+    vertex areas and the surface normals (:func:`.medial.surface_points`)."""
+    A = take_rows(V, F[:, 0])
+    return row_cross(take_rows(V, F[:, 1]) - A, take_rows(V, F[:, 2]) - A)
+
+
+def vertex_areas(V: np.ndarray, F: np.ndarray, fn: np.ndarray | None = None) -> np.ndarray:
     """(n,) barycentric vertex areas: a third of the area of every incident triangle.
 
     Sums to the surface area, so ``sum(w * g(v))`` approximates the integral of g over the
-    surface whatever the sampling density.
+    surface whatever the sampling density. ``fn``: :func:`face_cross` of (V, F), if at hand.
 
     Examples
     --------
@@ -19,5 +29,5 @@ def vertex_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     >>> vertex_areas(V, F).round(4).tolist()
     [0.1667, 0.1667, 0.1667]
     """
-    a = np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1) / 2
+    a = row_norm(face_cross(V, F) if fn is None else fn) / 2
     return np.bincount(F.ravel(), weights=np.repeat(a / 3.0, 3), minlength=len(V))

@@ -64,3 +64,24 @@ def test_degenerate_faces_dropped_isolated_vertices_flagged_input_untouched():
     assert len(m.F) == 4 and len(m.V) == 4
     np.testing.assert_array_equal(V, V0)
     np.testing.assert_array_equal(F, F0)
+
+
+def test_edge_table_from_the_census_is_the_working_meshs():
+    # the cleaning's edge census serves the first approximation's edge table when no repair
+    # changed the triangles after it (else None): the same arrays as mesh_graph.edge_table
+    from curveskel_addon.core.mesh_graph import edge_table
+    from tests.meshes import capsule, torus
+
+    V, F = torus(n_major=30, n_minor=12)
+    flipped = F.copy()
+    flipped[::3] = flipped[::3, ::-1]                   # turned over, then made consistent
+    for Vi, Fi in ((V, F), (V, flipped), (TET_V, TET_F), capsule()):
+        cm = clean_mesh(Vi, Fi)
+        E, count = cm.edge_table()
+        E0, count0 = edge_table(cm.F, len(cm.V))
+        assert E.dtype == E0.dtype and count.dtype == count0.dtype
+        np.testing.assert_array_equal(E, E0)
+        np.testing.assert_array_equal(count, count0)
+    # repairs after the census (an isolated vertex, a hole capped): no table
+    assert clean_mesh(np.vstack([TET_V, [[5.0, 5, 5]]]), TET_F).edge_table() is None
+    assert clean_mesh(V, F[1:]).edge_table() is None
