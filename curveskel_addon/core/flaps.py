@@ -7,11 +7,11 @@ bone pivots at the ear's root and points into the ear's middle; mean-curvature f
 flap towards the same line. The cross-sections the polish centres a chain on do not help here:
 across a flap they are long strips, beyond any reach a limb's section has.
 
-A leaf chain is a flap's when its cross-sections are flat: the area of the section loop round
-a joint is below ``ROUNDNESS`` times the disc of the loop's reach (a strip more than about 8.5
-times wider than thick; a round limb's sections are 0.4-0.9), at the median of its sections
-away from the junction (the first one cuts the body). Its joints are then laid evenly on the
-straight line from the junction towards the area centroid of the vertices closest to the
+A leaf chain is a flap's when its cross-sections are flat: the area of the section loop across
+the chain is below ``ROUNDNESS`` times the disc of the loop's reach (a strip more than about 13
+times wider than thick; a round limb's sections are 0.4-0.9), at the median of its sections at
+``SECTION_AT`` of its length beyond the junction's ball (a section there cuts the body). Its joints
+are then laid evenly on the straight line from the junction towards the area centroid of the vertices closest to the
 chain, ending where the flap's half-width fits behind the tip (a round flap ends at its centre,
 a long fin half a width short of its end), moved onto the flap's medial sheet (the nearest
 medial point of the flap: a cupped ear's centroid lies off the ear). The line must lie inside
@@ -20,7 +20,7 @@ the mesh, else the chain is left as it was.
 Examples
 --------
 >>> idx, Y = lay_flaps(V, F, w, joints, bones, inside, medial)    # doctest: +SKIP
->>> joints[idx, :3] = Y
+>>> joints[idx, :3] = Y                                           # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -31,17 +31,17 @@ from .cross_section import section_loops
 from .edit import chains
 from .mapping import closest_on_bones
 
-__all__ = ["lay_flaps", "flap_chains", "section_roundness", "ROUNDNESS", "SECTION_REACH",
-           "MIN_SECTIONS", "MAX_SECTIONS", "LINE_SAMPLES"]
+__all__ = ["lay_flaps", "flap_chains", "leaf_roundness", "section_roundness", "ROUNDNESS", "SECTION_REACH",
+           "MIN_SECTIONS", "SECTION_AT", "LINE_SAMPLES"]
 
 #: A section whose area is below this fraction of the disc of its reach is a flap's.
 ROUNDNESS = 0.15
 #: Sections are looked for up to this many joint radii (a flap's reach is its half-width).
 SECTION_REACH = 10.0
-#: A chain needs this many sections found away from its junction to be judged ...
+#: Where a leaf chain's sections are taken: fractions of its length beyond its junction's ball.
+SECTION_AT = np.array([0.2, 0.35, 0.5, 0.65, 0.8])
+#: A chain needs this many of them found (a closed loop round the point within reach).
 MIN_SECTIONS = 2
-#: ... and is judged on at most this many, spread along it (a long limb's are all alike).
-MAX_SECTIONS = 5
 #: Points per laid line tested for being inside the mesh.
 LINE_SAMPLES = 40
 # the far edge and the half-width: quantiles of the flap's vertices (a stray vertex of the body
@@ -78,29 +78,38 @@ def _leaf_chains(n, bones):
     return out
 
 
-def flap_chains(V, F, joints, bones, *, face_of=None, vertex_edge=None):
-    """The leaf chains whose cross-sections are flat (see the module docstring).
+def leaf_roundness(V, F, joints, bones, *, face_of=None, vertex_edge=None):
+    """Every leaf chain of three joints or more with the median :func:`section_roundness` of
+    its sections at ``SECTION_AT`` of its length (nan with fewer than ``MIN_SECTIONS`` found).
 
     Returns
     -------
-    list of (joints (k,) int, bones (k - 1,) int): each from its junction to its tip.
+    list of (joints (k,) int, bones (k - 1,) int, roundness float): each from its junction to
+    its tip.
     """
     J = np.asarray(joints, np.float64)
     bones = np.asarray(bones, np.int64).reshape(-1, 2)
-    cand = [(js, bs) for js, bs in _leaf_chains(len(J), bones) if len(js) >= MIN_SECTIONS + 3]
-    if not cand:
-        return []
-    # planes across the chain (along the neighbours' difference) at up to MAX_SECTIONS of its
-    # joints between the junction's neighbour (whose section cuts the body) and the tip
+    cand = [(js, bs) for js, bs in _leaf_chains(len(J), bones) if len(js) >= 3]
+    # planes across the chain at fixed fractions of its length beyond the junction's ball (as
+    # many for a chain of few joints as of many), along the bone there: none in the body (a
+    # section there cuts the body) or at the tip (the end cap)
     pts, tan, rad, own = [], [], [], []
     for k, (js, _) in enumerate(cand):
-        at = np.arange(2, len(js) - 1)
-        at = at[np.unique(np.linspace(0, len(at) - 1, min(len(at), MAX_SECTIONS)).round()
-                          .astype(np.int64))]
-        pts.append(J[js[at], :3])
-        tan.append(J[js[at + 1], :3] - J[js[at - 1], :3])
-        rad.append(J[js[at], 3])
+        X = J[js, :3]
+        seg = np.linalg.norm(np.diff(X, axis=0), axis=1)
+        s = np.concatenate([[0.0], np.cumsum(seg)])
+        start = abs(J[js[0], 3])                       # out of the junction's ball
+        if not s[-1] > start:
+            continue
+        at = start + SECTION_AT * (s[-1] - start)
+        b = np.clip(np.searchsorted(s, at, side="right") - 1, 0, len(seg) - 1)
+        u = np.divide(at - s[b], seg[b], out=np.zeros_like(at), where=seg[b] > 0)[:, None]
+        pts.append(X[b] + u * (X[b + 1] - X[b]))
+        tan.append(X[b + 1] - X[b])
+        rad.append((1 - u[:, 0]) * J[js[b], 3] + u[:, 0] * J[js[b + 1], 3])
         own.append(np.full(len(at), k))
+    if not pts:
+        return [(js, bs, float("nan")) for js, bs in cand]
     P, T, r, own = (np.concatenate(x) for x in (pts, tan, rad, own))
     nt = np.linalg.norm(T, axis=1, keepdims=True)
     T = np.divide(T, nt, out=np.zeros_like(T), where=nt > 0)
@@ -111,9 +120,21 @@ def flap_chains(V, F, joints, bones, *, face_of=None, vertex_edge=None):
     out = []
     for k, (js, bs) in enumerate(cand):
         sel = np.flatnonzero((own == k) & found)
-        if len(sel) >= MIN_SECTIONS and np.median(rnd[sel]) < ROUNDNESS:
-            out.append((js, bs))
+        out.append((js, bs, float(np.median(rnd[sel])) if len(sel) >= MIN_SECTIONS
+                    else float("nan")))
     return out
+
+
+def flap_chains(V, F, joints, bones, *, face_of=None, vertex_edge=None):
+    """The leaf chains whose cross-sections are flat (see the module docstring).
+
+    Returns
+    -------
+    list of (joints (k,) int, bones (k - 1,) int): each from its junction to its tip.
+    """
+    return [(js, bs) for js, bs, rnd in leaf_roundness(V, F, joints, bones, face_of=face_of,
+                                                       vertex_edge=vertex_edge)
+            if rnd < ROUNDNESS]
 
 
 def _weighted_quantile(x, w, q):
