@@ -56,7 +56,9 @@ def _describe(name: str, skeleton, seconds: float, stopped: bool = False) -> str
     s = skeleton.summary()
     how = "stopped after" if stopped else "in"
     return (f"CurveSkel '{name}': {s['joints']} joints, {s['bones']} bones, "
-            f"E0 {s['E0']:.4g} -> E {s['E']:.4g} {how} {s['iterations']} iterations, {seconds:.2f} s")
+            f"E0 {s['E0']:.4g} -> E {s['E_fit']:.4g} {how} {s['iterations']} iterations"
+            + (f" ({s['E']:.4g} with the silhouette's radii)" if s["E"] != s["E_fit"] else "")
+            + f", {seconds:.2f} s")
 
 
 def build_result(context, src, skeleton, options: dict, *, live_silhouette=None,

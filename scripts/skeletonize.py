@@ -158,8 +158,10 @@ def print_summary(path, V, sk, seconds: float, out=sys.stdout) -> None:
         sampled.append(f"medial balls against {meta['medial_points']:,} area-weighted surface points")
     if sampled:
         print(f"sampled     {'; '.join(sampled)} of {len(V):,}", file=out)
-    print(f"energy      E0 {s['E0']:.6g} -> E {s['E']:.6g} in {s['iterations']} iterations "
-          f"(solver {sk.meta.get('params', {}).get('solver', '?')})", file=out)
+    print(f"energy      E0 {s['E0']:.6g} -> E {s['E_fit']:.6g} in {s['iterations']} iterations "
+          f"(solver {sk.meta.get('params', {}).get('solver', '?')})"
+          + (f"; E {s['E']:.6g} for the returned skeleton (radii fitted to the silhouette, "
+             "joints to their sections' centres)" if s["E"] != s["E_fit"] else ""), file=out)
     stages = " | ".join(f"{k} {v:.3f}" for k, v in sk.timings.items())
     print(f"time (s)    {stages}", file=out)
     print(f"total       {seconds:.3f} s", file=out)

@@ -87,14 +87,20 @@ class Skeleton:
         return np.bincount(self.bones.ravel(), minlength=self.n_joints)
 
     def summary(self) -> dict:
-        """Figures a user wants to see after a run."""
+        """Figures a user wants to see after a run: joints, bones, components, E0 (the first
+        approximation's E), E_fit (after the fit of E), E (of the returned skeleton),
+        iterations, seconds."""
         e0 = self.energy[0] if self.energy else float("nan")
         e1 = self.energy[-1] if self.energy else float("nan")
+        # the E the fit reached: the stages after it fit the radii to the silhouette (and move
+        # joints to their sections' centres), which E does not measure, so E can rise again
+        fit = [st["energy"] for st in self.meta.get("stages", []) if st.get("stage") == "fit"]
         return {
             "joints": self.n_joints,
             "bones": self.n_bones,
             "components": int(self.meta.get("components", 1)),
             "E0": e0,
+            "E_fit": float(fit[-1]) if fit else e1,
             "E": e1,
             "iterations": self.iterations,
             "seconds": float(sum(self.timings.values())),
