@@ -2,20 +2,20 @@
 
 Why: a flap's medial surface is a sheet, so no one curve is its skeleton, and its Reeb branch
 runs to where the geodesic distance f peaks: a corner of the flap. The elephant's ear chains
-ended at the ears' top outer corners, 0.05 D from CGAL's ear lines (issue 10). A rigger's ear
-bone pivots at the ear's root and points into the ear's middle; mean-curvature flow shrinks a
-flap towards the same line. The cross-sections the polish centres a chain on do not help here:
+ended at the ears' top outer corners, 0.07-0.13 D from where CGAL's ear lines end (issue 10).
+A rigger's ear bone pivots at the ear's root and points into the ear's middle; mean-curvature
+flow shrinks a flap towards the same line. The cross-sections the polish centres a chain on do not help here:
 across a flap they are long strips, beyond any reach a limb's section has.
 
 A leaf chain is a flap's when its cross-sections are flat: the area of the section loop across
-the chain is below ``ROUNDNESS`` times the disc of the loop's reach (a strip more than about 13
+the chain is below ``ROUNDNESS`` times the disc of the loop's reach (a strip more than about 8.5
 times wider than thick; a round limb's sections are 0.4-0.9), at the median of its sections at
-``SECTION_AT`` of its length beyond the junction's ball (a section there cuts the body). Its joints
-are then laid evenly on the straight line from the junction towards the area centroid of the vertices closest to the
-chain, ending where the flap's half-width fits behind the tip (a round flap ends at its centre,
-a long fin half a width short of its end), moved onto the flap's medial sheet (the nearest
-medial point of the flap: a cupped ear's centroid lies off the ear). The line must lie inside
-the mesh, else the chain is left as it was.
+``SECTION_AT`` of its length beyond the junction's ball (a section there cuts the body). Its
+joints are then laid evenly on the straight line from the junction towards the area centroid of
+the vertices closest to the chain, ending where the flap's half-width fits behind the tip (a
+round flap ends at its centre, a long fin half a width short of its end), moved onto the flap's
+medial sheet (the nearest medial point of the flap: a cupped ear's centroid lies off the ear).
+The line must lie inside the mesh, else the chain is left as it was.
 
 Examples
 --------
@@ -31,8 +31,8 @@ from .cross_section import section_loops
 from .edit import chains
 from .mapping import closest_on_bones
 
-__all__ = ["lay_flaps", "flap_chains", "leaf_roundness", "section_roundness", "ROUNDNESS", "SECTION_REACH",
-           "MIN_SECTIONS", "SECTION_AT", "LINE_SAMPLES"]
+__all__ = ["lay_flaps", "flap_chains", "leaf_roundness", "section_roundness", "ROUNDNESS",
+           "SECTION_REACH", "MIN_SECTIONS", "SECTION_AT", "LINE_SAMPLES"]
 
 #: A section whose area is below this fraction of the disc of its reach is a flap's.
 ROUNDNESS = 0.15
