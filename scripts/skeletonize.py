@@ -372,7 +372,9 @@ def run(args) -> int:
     if args.bind or args.glb or args.fbx or args.blend or args.render:
         print("blender     loading Blender (bpy) ...", flush=True)
         _import_bpy()
-    if args.bind or args.glb or args.fbx:
+    # --bind with --blend / --render: the operator binds the mesh it saves (one import, one rig);
+    # a rig of its own only for the exports, or for --bind alone (a check)
+    if args.glb or args.fbx or (args.bind and not (args.blend or args.render)):
         rig_outputs(args, V, sk)
     if args.blend or args.render:
         blender_outputs(args, params)

@@ -139,6 +139,25 @@ def test_blend_over_an_existing_file_leaves_no_backup_unless_asked(mesh_file, tm
     assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.blend", "scene.blend1"]
 
 
+def test_bind_with_blend_saves_the_bound_mesh_importing_it_once(mesh_file, tmp_path):
+    """--bind --blend: the saved scene holds the mesh bound to its armature (a vertex group per
+    deforming bone, the Armature modifier); the mesh is read into Blender once (the operator
+    binds what it saves; a second rig built beside it was thrown away)."""
+    out = tmp_path / "bound.blend"
+    r = run_cli(mesh_file, "--bind", "--blend", out)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.count("import of") + r.stderr.count("import of") <= 1
+    bpy.ops.wm.read_homefile(use_empty=True)
+    with bpy.data.libraries.load(str(out)) as (src, dst):
+        dst.objects = list(src.objects)
+    meshes = [o for o in dst.objects if o.type == 'MESH' and o.vertex_groups]
+    arms = [o for o in dst.objects if o.type == 'ARMATURE']
+    assert len(meshes) == 1 and len(arms) == 1
+    deform = {b.name for b in arms[0].data.bones if b.use_deform}
+    assert deform <= {g.name for g in meshes[0].vertex_groups}
+    assert any(m.type == 'ARMATURE' and m.object == arms[0] for m in meshes[0].modifiers)
+
+
 @pytest.mark.parametrize("flag, name", [("--blend", "scene.blend"), ("--glb", "rig.glb"),
                                         ("--render", "preview.png")])
 def test_a_full_disk_keeps_the_old_output_and_exits_non_zero(mesh_file, tmp_path, flag, name):
