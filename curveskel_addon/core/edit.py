@@ -31,7 +31,7 @@ import numpy as np
 from .centreline import joint_adjacency
 from .quality import _point_segment_distance, skeleton_topology
 
-__all__ = ["chains", "merge_chains", "zip_parallel_chains", "collapse_short_bones", "prune_leaves", "compact", "chain_turns", "remove_sharp_turns", "edit_stage", "contain_stage", "undo_new_outside", "put_back",
+__all__ = ["chains", "leaf_chains", "merge_chains", "zip_parallel_chains", "collapse_short_bones", "prune_leaves", "compact", "chain_turns", "remove_sharp_turns", "edit_stage", "contain_stage", "undo_new_outside", "put_back",
            "EDIT_CONSTANTS"]
 
 #: The edit stage's constants (pipeline defaults), named once.
@@ -105,6 +105,24 @@ def chains(n_joints, bones):
         s = int(bones[b, 0])
         k = indptr[s] + (0 if bid[indptr[s]] == b else 1)
         out.append(walk(s, k))
+    return out
+
+
+def leaf_chains(n_joints, bones):
+    """The :func:`chains` from a junction (degree >= 3) to a leaf, each oriented junction first.
+
+    Returns
+    -------
+    list of (joints (k,) int, bones (k - 1,) int)
+    """
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    deg = np.bincount(bones.ravel(), minlength=n_joints)
+    out = []
+    for js, bs in chains(n_joints, bones):
+        if deg[js[0]] == 1 and deg[js[-1]] != 1:
+            js, bs = js[::-1], bs[::-1]
+        if deg[js[-1]] == 1 and deg[js[0]] >= 3:
+            out.append((np.asarray(js, np.int64), np.asarray(bs, np.int64)))
     return out
 
 
@@ -274,13 +292,8 @@ def prune_leaves(joints, bones, factor, *, max_rounds=10):
         J = len(joints)
         deg = np.bincount(bones.ravel(), minlength=J)
         drop = []
-        for js, bs in chains(J, bones):
-            a, b = js[0], js[-1]
-            if a == b:
-                continue
-            leaf, junc = (a, b) if deg[a] == 1 and deg[b] >= 3 else (b, a) if deg[b] == 1 and deg[a] >= 3 else (None, None)
-            if leaf is None:
-                continue
+        for js, bs in leaf_chains(J, bones):
+            junc = js[0]
             P = joints[js, :3]
             length = float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())
             # how far the branch reaches out of the junction's ball, against its own thickness

@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from .cross_section import section_loops
-from .edit import chains
+from .edit import leaf_chains
 from .mapping import closest_on_bones
 
 __all__ = ["lay_flaps", "flap_chains", "leaf_roundness", "section_roundness", "ROUNDNESS",
@@ -65,19 +65,6 @@ def section_roundness(area, extent):
     return np.where(ok, area / (np.pi * np.where(ok, extent, 1.0) ** 2), 0.0)
 
 
-def _leaf_chains(n, bones):
-    """(joints from junction to tip, bones in that order) of every chain from a junction to a
-    leaf."""
-    deg = np.bincount(bones.ravel(), minlength=n)
-    out = []
-    for js, bs in chains(n, bones):
-        if deg[js[0]] == 1 and deg[js[-1]] != 1:
-            js, bs = js[::-1], bs[::-1]
-        if deg[js[-1]] == 1 and deg[js[0]] >= 3:
-            out.append((np.asarray(js, np.int64), np.asarray(bs, np.int64)))
-    return out
-
-
 def leaf_roundness(V, F, joints, bones, *, face_of=None, vertex_edge=None):
     """Every leaf chain of three joints or more with the median :func:`section_roundness` of
     its sections at ``SECTION_AT`` of its length (nan with fewer than ``MIN_SECTIONS`` found).
@@ -89,7 +76,7 @@ def leaf_roundness(V, F, joints, bones, *, face_of=None, vertex_edge=None):
     """
     J = np.asarray(joints, np.float64)
     bones = np.asarray(bones, np.int64).reshape(-1, 2)
-    cand = [(js, bs) for js, bs in _leaf_chains(len(J), bones) if len(js) >= 3]
+    cand = [(js, bs) for js, bs in leaf_chains(len(J), bones) if len(js) >= 3]
     # planes across the chain at fixed fractions of its length beyond the junction's ball (as
     # many for a chain of few joints as of many), along the bone there: none in the body (a
     # section there cuts the body) or at the tip (the end cap)
