@@ -34,7 +34,7 @@ from scipy.spatial import cKDTree
 
 from .centreline import SURFACE_RADII_ROUNDS, centre_stage, fit_radii_surface, smooth_chains
 from .cross_section import polish_chains
-from .edit import contain_stage, edit_stage, put_back, undo_new_outside
+from .edit import contain_stage, edit_stage, outside_worse, put_back
 from .errors import CurveSkelError
 from .flaps import lay_flaps
 from .junctions import onto_trunks
@@ -351,12 +351,18 @@ class SkeletonRun:
             Y[out] = X[out]
             X = Y
         st.joints[:, :3] = X
+        # joints whose moves made a new fold or crossing, or took a bone further out of the mesh
+        # (each move was checked for its joint only: a bone can cut a corner out), put back;
+        # both tests in one loop: a joint put back for one may make the other's defect
+        guards = []
         if FOLD_GUARD:
             # positions only (crossings measured with the radii before): one radius fit after
-            undo_new_folds(st.joints, st.bones, before, st.diag)
+            guards.append(fold_worse(st.bones, before, st.diag))
         if INSIDE_GUARD:
-            # (each move was checked for its joint only: a bone can cut a corner out)
-            undo_new_outside(st.joints, st.bones, before, st.inside)
+            guards.append(outside_worse(st.bones, before, st.inside))
+        if guards:
+            put_back(st.joints, st.bones, before,
+                     lambda X: np.unique(np.concatenate([g(X) for g in guards])))
         if SURFACE_RADII:
             # one reweighting is start enough for the silhouette's fit (the five of the
             # nearest-bone fit alone: the same mean recon, 0.73-0.75x over 1-5)
@@ -427,7 +433,7 @@ class SkeletonRun:
         return meta
 
 
-def undo_new_folds(joints, bones, before, D, *, rounds: int = 3) -> np.ndarray:
+def undo_new_folds(joints, bones, before, D, *, rounds: int | None = None) -> np.ndarray:
     """Put back the joints of bones that fold although they did not in ``before`` (in place).
 
     Why: E is low wherever the balls explain the surface, so where two chains pass a thin
@@ -448,19 +454,26 @@ def undo_new_folds(joints, bones, before, D, *, rounds: int = 3) -> np.ndarray:
     -------
     (J,) bool : the joints put back.
     """
+    return put_back(joints, bones, before, fold_worse(bones, before, D), rounds=rounds)
+
+
+def fold_worse(bones, before, D):
+    """``worse(X)`` for :func:`.edit.put_back`: the bones of folds (and crossings, measured
+    with ``before``'s radii) at ``X`` that ``before`` does not have."""
     from .quality import crossing_pairs, fold_pairs
 
     def pairs(X):
-        # folds, and crossings measured with the edit stage's radii (the part's thickness)
+        # folds, and crossings measured with the edit stage's radii (the part's thickness),
+        # each kind on its own: two bones that crossed before and fold now make a new fold
         Xr = np.column_stack([X[:, :3], before[:, 3]])
-        found = fold_pairs(X, bones, D).tolist()
+        found = [("fold",) + tuple(p) for p in fold_pairs(X, bones, D).tolist()]
         if CROSSING_GUARD:
-            found += crossing_pairs(Xr, bones, D).tolist()
+            found += [("cross",) + tuple(p) for p in crossing_pairs(Xr, bones, D).tolist()]
         return found
 
-    old = {tuple(p) for p in pairs(before)}
-    return put_back(joints, bones, before, lambda X: np.unique(
-        [b for p in pairs(X) if tuple(p) not in old for b in p]), rounds=rounds)
+    old = set(pairs(before))
+    return lambda X: np.unique(np.asarray(
+        [b for p in pairs(X) if p not in old for b in p[1:]], np.int64))
 
 
 def _into_box(st) -> None:

@@ -203,6 +203,56 @@ def test_a_fit_that_lays_one_arm_across_the_other_in_a_thick_part_is_undone():
     np.testing.assert_array_equal(after, before)
 
 
+def test_a_crossing_that_became_a_fold_is_undone():
+    # The thick U's right tip crossed into the left arm's part before (a crossing the guard
+    # leaves alone) and now lies on the left arm (a fold): a new defect of another kind. Keyed
+    # by bone pair alone, the old crossing hid the new fold (3holes with 1e-4 D noise kept one).
+    from curveskel_addon.core.pipeline import undo_new_folds
+    from curveskel_addon.core.quality import crossing_pairs, fold_pairs
+
+    before, bones = _u_chain()
+    before[:, 3] = 0.4
+    D = 1.5
+    before[-1, :3] = [0.05, 0.9, 0.0]
+    assert len(crossing_pairs(before, bones, D)) > 0 == len(fold_pairs(before, bones, D))
+    after = before.copy()
+    after[-1, :3] = [0.005, 1.0, 0.0]
+    assert len(fold_pairs(after, bones, D)) > 0
+    back = undo_new_folds(after, bones, before, D)
+    assert back[-1] and len(fold_pairs(after, bones, D)) == 0
+
+
+def test_put_back_goes_on_until_no_bone_is_worse():
+    from curveskel_addon.core.edit import put_back
+
+    # a cascade: putting a joint back makes the bone to its next neighbour worse (as a fold
+    # guard's put-back can make a neighbouring bone fold): seven rounds, not three
+    bones = np.array([[k, k + 1] for k in range(7)])
+    before = np.zeros((8, 4))
+    after = before + [0.0, 1.0, 0.0, 0.0]
+
+    def cascade(X):
+        home = (X[:, :3] == before[:, :3]).all(axis=1)
+        if not home[0]:
+            return np.array([0])
+        return np.flatnonzero(home[bones[:, 0]] != home[bones[:, 1]])
+
+    X = after.copy()
+    back = put_back(X, bones, before, cascade)
+    assert back.all() and not len(cascade(X))
+    X = after.copy()
+    put_back(X, bones, before, cascade, rounds=3)         # capped: the defect is left
+    assert len(cascade(X))
+
+    # a bone worse although its own joints never moved (a fold's path along the skeleton
+    # grew with joints farther on): the next ring of joints goes back
+    far_moved = lambda X: np.array([1]) if (X[3, :3] != before[3, :3]).any() else np.zeros(0, int)
+    X = before.copy()
+    X[3, 1] = 1.0
+    back = put_back(X, bones, before, far_moved)
+    assert back[3] and not len(far_moved(X)) and not back[5:].any()
+
+
 def test_medial_balls_on_a_surface_subsample_are_reported(monkeypatch):
     # above centreline.MEDIAL_TREE_POINTS vertices the medial balls shrink against an
     # area-weighted subsample (the 3,000 medial samples included): meta says how many points
