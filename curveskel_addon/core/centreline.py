@@ -359,12 +359,12 @@ def _signed_depth(tree, inside, V=None, F=None, k: int = 8, ids=None, face_of=No
 
 
 def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0, key=None, weights=None,
-                   order=None, face_cross=None):
+                   face_cross=None):
     """Medial points of (at most) k area-weighted vertex samples.
 
-    ``weights`` (n,): the vertices' areas if already known (any scale). ``order``:
-    ``np.argsort(key, kind="stable")`` if at hand; ``face_cross``: that of
-    :func:`.vertex_area.face_cross` (V, F), if at hand.
+    ``key`` (n,): the quantity of the shape the draw reads (:func:`.state.canonical_subset`;
+    the vertex numbers if None); ``weights`` (n,): the vertices' areas if already known (any
+    scale); ``face_cross``: that of :func:`.vertex_area.face_cross` (V, F), if at hand.
 
     Returns
     -------
@@ -379,12 +379,9 @@ def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0, key=None, weig
     n = len(V)
     subsample = n > MEDIAL_TREE_POINTS             # the balls' points too (see below)
     key = np.arange(n) if key is None else key
-    if order is None and (n > k or subsample):
-        order = np.argsort(key, kind="stable")
-    elif not (n > k or subsample):
-        order = None
-    a = vertex_areas(V, F, face_cross) if weights is None and order is not None else weights
-    idx = np.arange(n) if n <= k else canonical_subset(key, k, seed, p=a, order=order)
+    drawn = n > k or subsample
+    a = vertex_areas(V, F, face_cross) if weights is None and drawn else weights
+    idx = np.arange(n) if n <= k else canonical_subset(key, k, seed, p=a)
     X = np.asarray(fa_joints)[:, :3]
     i, j = fa_bones[bone[idx], 0], fa_bones[bone[idx], 1]
     sig = t[idx, None] * X[i] + (1.0 - t[idx, None]) * X[j]
@@ -395,7 +392,7 @@ def medial_samples(V, F, fa_joints, fa_bones, bone, t, k, seed=0, key=None, weig
         # included): on a huge mesh the k-NN queries of balls centred on an axis visit the
         # whole ring of vertices around it, and vertices this dense add nothing measurable
         # (a ball can bulge through the subsample's gaps by their sagitta, ~gap^2 / radius).
-        keep = canonical_subset(key, MEDIAL_TREE_POINTS, seed + 1, p=a, order=order)
+        keep = canonical_subset(key, MEDIAL_TREE_POINTS, seed + 1, p=a)
         points = np.union1d(keep, idx)
     balls = MedialBalls(V, F, points=points, face_cross=face_cross)
     q = idx if points is None else np.searchsorted(points, idx)
@@ -441,7 +438,6 @@ def centre_stage(state, spacing_abs, *, smooth, seed=0):
     idx, M, rho, balls = medial_samples(V, F, state.joints, state.bones, state.bone, state.t,
                                         MEDIAL_SAMPLES, seed=seed, key=state.key,
                                         weights=state.areas,
-                                        order=None if state.key is None else state.key_order,
                                         face_cross=state.face_cross)
     state.face_cross = None                          # (only the surface normals needed it)
     state.medial = (M, rho)

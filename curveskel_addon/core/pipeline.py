@@ -244,7 +244,7 @@ class SkeletonRun:
         self.fit_subset = None
         n = len(pr.points)
         if p.area_weighted and p.max_fit_points and n > p.max_fit_points:
-            idx = canonical_subset(st.key, p.max_fit_points, p.seed, order=st.key_order)
+            idx = canonical_subset(st.key, p.max_fit_points, p.seed)
             self.fit_subset = idx
             pr = FitProblem(pr.points[idx], pr.weights[idx] * (n / p.max_fit_points), pr.joints,
                             pr.bones, pr.bone[idx], pr.t[idx], pr.meta)
@@ -385,7 +385,7 @@ class SkeletonRun:
             # a uniform draw, each vertex with its area: an unbiased estimate of the area-weighted
             # sum whatever the share drawn (a draw with probabilities by area is not one when it
             # takes most of the vertices)
-            idx = canonical_subset(st.key, SAMPLES, self.params.seed + 2, order=st.key_order)
+            idx = canonical_subset(st.key, SAMPLES, self.params.seed + 2)
         else:
             idx = np.arange(n)
         w = st.weights[idx]
