@@ -140,8 +140,8 @@ def write_weights(mesh_obj, group_names, index, weight) -> None:
     me = mesh_obj.data
     groups = mesh_obj.vertex_groups
     # remove first, then create: removing a group renumbers the groups after it. Names are
-    # matched against ``keys()`` (one call) rather than ``get`` per name, which searches the
-    # groups one by one
+    # matched against ``keys()`` (one call): ``get`` per name searches the groups one by one
+    # (0.3 ms for 106 groups)
     for g in set(groups.keys()).intersection(group_names):
         groups.remove(groups[g])
     for g in group_names:
@@ -165,9 +165,8 @@ def write_weights(mesh_obj, group_names, index, weight) -> None:
         # the first two columns (a bind's: each vertex's bone, then its neighbour across a
         # joint, if any) in one loop step per vertex, no per-subset lists; further columns
         # (other callers) after, column by column
-        none = np.full(n, -1, np.int64)
-        g0, g1 = (gidx[:, c] if c < k else none for c in (0, 1))
-        w0, w1 = (weight[:, c] if c < k else none for c in (0, 1))
+        g0, g1 = (gidx[:, c] if c < k else np.full(n, -1, np.int64) for c in (0, 1))
+        w0, w1 = (weight[:, c] if c < k else np.zeros(n) for c in (0, 1))
         for v, a, x, b, y in zip(bm.verts, g0.tolist(), w0.tolist(), g1.tolist(), w1.tolist()):
             d = v[dl]
             if a >= 0:

@@ -175,8 +175,7 @@ def _all_bones(P, X, bones, *, with_t: bool = True):
         num = p @ Dt                                  # (p - a).d
         num -= AD
         t = num * inv
-        np.maximum(t, 0.0, out=t)
-        np.minimum(t, 1.0, out=t)
+        np.clip(t, 0.0, 1.0, out=t)
         d2 = p @ At                                   # |p - sigma|^2 - |p|^2
         d2 += AA
         num *= 2.0
@@ -184,14 +183,19 @@ def _all_bones(P, X, bones, *, with_t: bool = True):
         num *= t
         d2 -= num
         best = np.argmin(d2, axis=1)
-        near = d2 <= (d2[np.arange(len(d2)), best] + tol)[:, None]
-        cnt = np.count_nonzero(near, axis=1)
         bone[s:s + len(d2)] = best
-        many = np.flatnonzero(cnt > 1)
+        # rows where another bone is within tol of the best: the best set aside, the least
+        # of the others; their candidates (best included) only for those rows
+        at = np.arange(len(d2))
+        within = d2[at, best] + tol
+        d2[at, best] = np.inf
+        many = np.flatnonzero(d2.min(axis=1) <= within)
         if len(many):
+            near = d2[many] <= within[many, None]
+            near[np.arange(len(many)), best[many]] = True
             rows.append(s + many)
-            cands.append(np.nonzero(near[many])[1])
-            counts.append(cnt[many])
+            cands.append(np.nonzero(near)[1])
+            counts.append(np.count_nonzero(near, axis=1))
     if rows:
         rows = np.concatenate(rows)
         indptr = np.r_[0, np.cumsum(np.concatenate(counts))]

@@ -205,9 +205,8 @@ def _smooth_dense(rows, cols, vals, n, nb, graph, iterations, max_influences, pr
     for j in range(min(max_influences, nb)):
         best = np.argmax(Wd, axis=1)             # the first of equal values: the lower column
         v = Wd[rank, best]
-        has = v > 0
-        out_i[has, j] = best[has]
-        out_w[has, j] = v[has]
+        out_i[:, j] = np.where(v > 0, best, -1)
+        out_w[:, j] = v                          # 0 where the row has no weight left
         Wd[rank, best] = 0.0
     total = out_w.sum(axis=1, keepdims=True)
     out_w = np.divide(out_w, total, out=np.zeros_like(out_w), where=total > 0)
@@ -409,7 +408,9 @@ class _Graph:
 
     def __init__(self, E, n):
         E = np.asarray(E, dtype=np.int64).reshape(-1, 2)
-        E = E[E[:, 0] != E[:, 1]]
+        loops = E[:, 0] == E[:, 1]
+        if loops.any():                  # a mesh's edges have none: no copy then
+            E = E[~loops]
         # each (row, column) pair as the key row * n + column, sorted, duplicates once: the CSR
         # arrays with columns sorted in each row, as scipy's COO -> CSR conversion and
         # sort_indices give them, for half the cost of building that matrix
@@ -631,8 +632,10 @@ def _keep_family(index, weight, blend_parent):
     blending child (the first such column: weights decrease), whichever weighs more (the parent
     on a tie): the parent and a child of the main bone are not neighbours, and siblings never
     share a vertex. The two are renormalised and sorted by decreasing weight (the main bone
-    first on a tie); other columns -1 / 0. One pass over the few columns, not a masked copy of
-    the whole array per condition (a small mesh's bind spent more on those than on the rest).
+    first on a tie); other columns -1 / 0. Equal, bit for bit, to masking the whole (n, m)
+    array once per condition and sorting each row (tests/core/test_skin_weights.py keeps that
+    version as the reference), in about half the array passes: on a small mesh each pass costs
+    more than its arithmetic.
     """
     n, m = index.shape
     out_i = np.full((n, m), -1, np.int64)
