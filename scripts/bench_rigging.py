@@ -208,7 +208,7 @@ def run_mesh(path, methods, skeleton_dir=None, bind_options=None, repeat=3):
            "mirror": "curveskel_mirror" in arm, "skeleton_seconds": round(t_sk, 2),
            "armature_seconds": round(t_arm, 3)}
     first = {m: [] for m in methods}
-    for _ in range(max(repeat, 1)):               # first binds of fresh copies, methods taking turns
+    for _ in range(max(repeat, 1)):               # first binds of fresh copies, taking turns
         for method in methods:
             first[method].append(first_bind(ob, arm, method, bind_options))
     figs = {}
@@ -237,8 +237,9 @@ def run_mesh(path, methods, skeleton_dir=None, bind_options=None, repeat=3):
                 m[key] = round(fig[key], 4)
         m["unweighted"] = fig["unweighted"]
         out[method] = m
-        print(f"  {method:7s} first bind {m['first_seconds']:7.4f} s (median {m['first_median_seconds']:.4f}), "
-              f"re-bind {fig['seconds']:7.4f} s  bleed {m['bleed']:.4f} ({m['bleed_chain']})  "
+        print(f"  {method:7s} first bind {m['first_seconds']:7.4f} s "
+              f"(median {m['first_median_seconds']:.4f}), re-bind {fig['seconds']:7.4f} s  "
+              f"bleed {m['bleed']:.4f} ({m['bleed_chain']})  "
               f"flipped {m['flipped']} ({m['flipped_chain']})  non-adjacent {m['non_adjacent']}  "
               f"unweighted {fig['unweighted']}", flush=True)
     return out
@@ -247,8 +248,8 @@ def run_mesh(path, methods, skeleton_dir=None, bind_options=None, repeat=3):
 def table(rows, methods) -> str:
     head = ["mesh", "V", "bones", ".L bones"]
     for m in methods:
-        head += [f"{m.lower()} first bind s", f"{m.lower()} re-bind s", f"{m.lower()} bleed", f"{m.lower()} flipped",
-                 f"{m.lower()} non-adj."]
+        head += [f"{m.lower()} first bind s", f"{m.lower()} re-bind s", f"{m.lower()} bleed",
+                 f"{m.lower()} flipped", f"{m.lower()} non-adj."]
     ratio = "SURFACE" in methods and "HEAT" in methods
     if ratio:
         head += ["heat / surface first bind", "heat / surface re-bind"]
@@ -257,8 +258,9 @@ def table(rows, methods) -> str:
         cells = [r["mesh"], f"{r['vertices']:,}", str(r["bones"]), str(r["pairs"])]
         for m in methods:
             x = r.get(m)
-            cells += ([f"{x['first_seconds']:.4f}", f"{x['seconds']:.4f}", f"{100 * x['bleed']:.2f} %",
-                       str(x["flipped"]), str(x["non_adjacent"])] if x else ["-"] * 5)
+            cells += ([f"{x['first_seconds']:.4f}", f"{x['seconds']:.4f}",
+                       f"{100 * x['bleed']:.2f} %", str(x["flipped"]), str(x["non_adjacent"])]
+                      if x else ["-"] * 5)
         if ratio:
             s, h = r.get("SURFACE"), r.get("HEAT")
             for key in ("first_seconds", "seconds"):
@@ -277,7 +279,8 @@ def main(argv=None) -> int:
     ap.add_argument("--smooth", type=float, default=0.5, help="bind surface smoothing (SURFACE)")
     ap.add_argument("--junction-blend", type=float, default=0.0, help="blend where chains leave a junction (SURFACE)")
     ap.add_argument("--repeat", type=int, default=3,
-                    help="first binds (fresh copies) and re-binds per method; the fastest is reported")
+                    help="first binds (of fresh copies) and re-binds per method; the fastest "
+                         "is reported")
     args = ap.parse_args(argv)
     from curveskel_addon import headless
 
