@@ -20,7 +20,7 @@ import numpy as np
 from .errors import CurveSkelError
 from .rows import col_max, col_min, mul_rows, take_rows
 
-__all__ = ["closest_on_bones"]
+__all__ = ["closest_on_bones", "closest_bone"]
 
 _CHUNK = 1 << 18   # point-bone pairs evaluated at once when every bone is a candidate
 
@@ -129,8 +129,20 @@ def closest_on_bones(points, joints, bones, candidates=None):
     return bone, t, d2
 
 
-def _all_bones(P, X, bones):
-    """Every bone a candidate: choose the bone with dot products, then exact t and dist2.
+def closest_bone(points, joints, bones) -> np.ndarray:
+    """The bone :func:`closest_on_bones` chooses with every bone a candidate (the first of
+    equally close bones), without its t and distance (a bind needs only the bone)."""
+    P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    X = np.asarray(joints, dtype=np.float64)[:, :3]
+    bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
+    if len(P) and not len(bones):
+        raise CurveSkelError("closest_bone: the skeleton has no bones")
+    return _all_bones(P, X, bones, with_t=False)
+
+
+def _all_bones(P, X, bones, *, with_t: bool = True):
+    """Every bone a candidate: choose the bone with dot products, then exact t and dist2
+    (``with_t`` False: the bone alone).
 
     For point p and bone (xi, xj) with a = xj, d = xi - xj: num = p.d - a.d, t = num / d.d and
     |p - sigma|^2 - |p|^2 = -2 p.a + a.a - t (2 num - t d.d), from the (k, B) products P A^T and
@@ -142,7 +154,7 @@ def _all_bones(P, X, bones):
     n, nb = len(P), len(bones)
     bone = np.zeros(n, np.int64)
     if n == 0 or nb == 1:
-        return (bone, *_on_bones(P, X, bones, bone))
+        return (bone, *_on_bones(P, X, bones, bone)) if with_t else bone
     o = 0.5 * (col_min(P) + col_max(P))
     A = X[bones[:, 1]] - o
     D = X[bones[:, 0]] - X[bones[:, 1]]
@@ -163,8 +175,7 @@ def _all_bones(P, X, bones):
         num = p @ Dt                                  # (p - a).d
         num -= AD
         t = num * inv
-        np.maximum(t, 0.0, out=t)
-        np.minimum(t, 1.0, out=t)
+        np.clip(t, 0.0, 1.0, out=t)
         d2 = p @ At                                   # |p - sigma|^2 - |p|^2
         d2 += AA
         num *= 2.0
@@ -172,17 +183,24 @@ def _all_bones(P, X, bones):
         num *= t
         d2 -= num
         best = np.argmin(d2, axis=1)
-        near = d2 <= (d2[np.arange(len(d2)), best] + tol)[:, None]
-        cnt = np.count_nonzero(near, axis=1)
         bone[s:s + len(d2)] = best
-        many = np.flatnonzero(cnt > 1)
+        # rows where another bone is within tol of the best: the best set aside, the least
+        # of the others; their candidates (best included) only for those rows
+        at = np.arange(len(d2))
+        within = d2[at, best] + tol
+        d2[at, best] = np.inf
+        many = np.flatnonzero(d2.min(axis=1) <= within)
         if len(many):
+            near = d2[many] <= within[many, None]
+            near[np.arange(len(many)), best[many]] = True
             rows.append(s + many)
-            cands.append(np.nonzero(near[many])[1])
-            counts.append(cnt[many])
+            cands.append(np.nonzero(near)[1])
+            counts.append(np.count_nonzero(near, axis=1))
     if rows:
         rows = np.concatenate(rows)
         indptr = np.r_[0, np.cumsum(np.concatenate(counts))]
         bone[rows] = closest_on_bones(P[rows], X, bones, candidates=(indptr, np.concatenate(cands)))[0]
+    if not with_t:
+        return bone
     t, d2 = _on_bones(P, X, bones, bone)
     return bone, t, d2

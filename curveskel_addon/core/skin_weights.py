@@ -33,7 +33,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from .errors import CurveSkelError
-from .mapping import closest_on_bones
+from .mapping import closest_bone, closest_on_bones
 from .rig_layout import BLEND_HUB, BLEND_SYMMETRIC, RigLayout
 
 __all__ = ["skin_weights", "smooth_weights", "smoothing_iterations", "smoothstep", "project_on_bones",
@@ -193,8 +193,7 @@ def _smooth_dense(rows, cols, vals, n, nb, graph, iterations, max_influences, pr
     middle-sized meshes a sparse-times-dense product per step costs 2-4x less than the sparse
     product (whose per-step bookkeeping dominates there). Weights below ``prune`` are dropped
     after the last step (not after each), the 4 largest kept as in :func:`_largest`."""
-    S = graph.averaging()
-    S = sp.csr_matrix((S.data.astype(np.float32), S.indices, S.indptr), shape=S.shape)
+    S = graph.averaging(np.float32)
     Wd = np.bincount(rows * nb + cols, weights=vals, minlength=n * nb).astype(np.float32)
     Wd = Wd.reshape(n, nb)
     for _ in range(int(iterations)):
@@ -206,9 +205,8 @@ def _smooth_dense(rows, cols, vals, n, nb, graph, iterations, max_influences, pr
     for j in range(min(max_influences, nb)):
         best = np.argmax(Wd, axis=1)             # the first of equal values: the lower column
         v = Wd[rank, best]
-        has = v > 0
-        out_i[has, j] = best[has]
-        out_w[has, j] = v[has]
+        out_i[:, j] = np.where(v > 0, best, -1)
+        out_w[:, j] = v                          # 0 where the row has no weight left
         Wd[rank, best] = 0.0
     total = out_w.sum(axis=1, keepdims=True)
     out_w = np.divide(out_w, total, out=np.zeros_like(out_w), where=total > 0)
@@ -410,17 +408,24 @@ class _Graph:
 
     def __init__(self, E, n):
         E = np.asarray(E, dtype=np.int64).reshape(-1, 2)
-        E = E[E[:, 0] != E[:, 1]]
-        ar = np.arange(n, dtype=np.int64)
-        rows, cols = np.r_[E[:, 0], E[:, 1], ar], np.r_[E[:, 1], E[:, 0], ar]
-        C = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
-        C.sort_indices()
+        loops = E[:, 0] == E[:, 1]
+        if loops.any():                  # a mesh's edges have none: no copy then
+            E = E[~loops]
+        # each (row, column) pair as the key row * n + column, sorted, duplicates once: the CSR
+        # arrays with columns sorted in each row, as scipy's COO -> CSR conversion and
+        # sort_indices give them, for half the cost of building that matrix
+        key = np.concatenate([E[:, 0] * n + E[:, 1], E[:, 1] * n + E[:, 0],
+                              np.arange(n, dtype=np.int64) * (n + 1)])
+        key.sort()
+        if len(key):
+            key = key[np.concatenate(([True], key[1:] != key[:-1]))]
         self.n = n
         self.edges = E
-        self.indptr = C.indptr.astype(np.int64)
-        self.indices = C.indices.astype(np.int64)
-        counts = np.diff(self.indptr)
-        self.rows = np.repeat(ar, counts)
+        self.rows = key // max(n, 1)
+        self.indices = key - self.rows * n
+        counts = np.bincount(self.rows, minlength=n)
+        self.indptr = np.zeros(n + 1, np.int64)
+        np.cumsum(counts, out=self.indptr[1:])
         self.diag = self.indices == self.rows
         self.deg = counts - 1
 
@@ -443,7 +448,7 @@ class _Graph:
         w = np.maximum(np.sqrt(np.einsum("ij,ij->i", P[r] - P[c], P[r] - P[c])), 1e-12)
         indptr = np.zeros(len(sub) + 1, np.int64)
         np.cumsum(np.bincount(loc[r], minlength=len(sub)), out=indptr[1:])
-        G = sp.csr_matrix((w, loc[c], indptr), shape=(len(sub), len(sub)))
+        G = _csr(w, loc[c], indptr, len(sub))
         src = np.flatnonzero(kept[sub])
         # the graph is symmetric: directed=True walks the same edges without a transposed copy
         dist, _, sources = dijkstra(G, directed=True, indices=src, min_only=True,
@@ -452,23 +457,31 @@ class _Graph:
         out[sub[ok]] = sub[sources[ok]]
         return out
 
-    def averaging(self):
+    def averaging(self, dtype=np.float64):
         """S = D^-1 (A + I): each vertex's average over its closed 1-ring. Columns are stored in
         decreasing order in each row, as scipy's product D^-1 @ (A + I) leaves them: the sums
-        of a step then add up in the same order (ties between bones break the same way)."""
-        data = np.repeat(1.0 / (self.deg + 1.0), self.deg + 1)
+        of a step then add up in the same order (ties between bones break the same way).
+        ``dtype`` of the entries (float32: the float64 ones rounded)."""
+        data = np.repeat((1.0 / (self.deg + 1.0)).astype(dtype, copy=False), self.deg + 1)
         rev = self.indptr[self.rows] + self.indptr[self.rows + 1] - 1 - np.arange(len(self.rows))
-        idx = np.int32 if len(self.indices) < 2**31 - 1 else np.int64
-        return sp.csr_matrix((data, self.indices[rev].astype(idx), self.indptr.astype(idx)),
-                             shape=(self.n, self.n))
+        return _csr(data, self.indices[rev], self.indptr, self.n)
 
     def components(self, keep):
         """Connected components (labels) of the graph restricted to the stored pairs ``keep``."""
         keep = keep | self.diag
         indptr = np.zeros(self.n + 1, np.int64)
         np.cumsum(np.bincount(self.rows[keep], minlength=self.n), out=indptr[1:])
-        G = sp.csr_matrix((np.ones(int(keep.sum())), self.indices[keep], indptr), shape=(self.n, self.n))
+        G = _csr(np.ones(int(indptr[-1])), self.indices[keep], indptr, self.n)
         return connected_components(G, directed=True, connection="strong")[1]
+
+
+def _csr(data, indices, indptr, n):
+    """The (n, n) CSR matrix of these arrays, its index arrays in int32 where they fit: the type
+    scipy would choose itself, after scanning int64 arrays to find that they fit (which costs
+    more than the conversion on small meshes)."""
+    idx = np.int32 if max(len(indices), n) < 2**31 - 1 else np.int64
+    return sp.csr_matrix((data, indices.astype(idx, copy=False), indptr.astype(idx, copy=False)),
+                         shape=(n, n))
 
 
 def _closest_bones(P, H, T, ids):
@@ -481,7 +494,7 @@ def _closest_bones(P, H, T, ids):
         return np.zeros(n, np.int64)
     X = np.concatenate([H[ids], T[ids]])              # sigma = t * head + (1 - t) * tail
     segs = np.stack([np.arange(B), B + np.arange(B)], 1)
-    return closest_on_bones(P, X, segs)[0]
+    return closest_bone(P, X, segs)
 
 
 def _labels(P, graph, H, T, deform):
@@ -603,33 +616,58 @@ def bone_weights(V, F, heads, tails, parent, deform=None, *, blend: float = 0.25
         h = float(np.mean(np.sqrt(np.einsum("ij,ij->i", dE, dE))))      # mean edge length
         k = smoothing_iterations(smooth * float(np.median(dist)), h, cap=SMOOTH_CAP)
     index, weight = _smooth(index, weight, graph, k, max_influences, 1e-4)
-    # keep the main bone's family only (itself, its parent, its children)
-    main = index[:, :1]
-    ok = index >= 0
-    idx = np.maximum(index, 0)
-    # joints that blend: a bone's head on its parent (a chain joint; any attached parent when
-    # junctions blend too)
+    # keep the main bone's family only: itself and, across a joint that blends (a chain joint;
+    # any attached parent when junctions blend too), its parent or one child
     blends = (hm == BLEND_SYMMETRIC) | ((hm == BLEND_HUB) & (junction_blend > 0))
-    pm = np.where(blends[main], par[main], -2)
-    pi = np.where(blends[idx], par[idx], -2)
-    up = ok & (idx == pm) & (idx != main)
-    down = ok & (pi == main) & (idx != main)
-    family = ok & ((idx == main) | up | down)
-    weight = np.where(family, weight, 0.0)
-    # the parent and a child of the main bone are not neighbours: keep the heavier side only
-    # ... and one child only (siblings never share a vertex)
-    wd = np.where(down, weight, -1.0)
-    heaviest = np.argmax(wd, axis=1)[:, None]
-    down &= np.arange(down.shape[1])[None, :] == heaviest
-    weight = np.where(family & ~(idx == main) & ~up & ~down, 0.0, weight)
-    w_up = np.where(up, weight, 0.0).sum(axis=1, keepdims=True)
-    w_down = np.where(down, weight, 0.0).sum(axis=1, keepdims=True)
-    weight = np.where((up & (w_up < w_down)) | (down & (w_down <= w_up) & (w_up > 0)), 0.0, weight)
-    index = np.where(family, index, -1)
-    total = weight.sum(axis=1, keepdims=True)
-    weight = np.divide(weight, total, out=np.zeros_like(weight), where=total > 0)
-    order = np.argsort(-weight, axis=1, kind="stable")
-    index = np.take_along_axis(index, order, axis=1)
-    weight = np.take_along_axis(weight, order, axis=1)
-    index[weight <= 0] = -1
+    index, weight = _keep_family(index, weight, np.where(blends, par, -2))
     return index, weight, {"relabelled": int(np.sum(label != closest)), "smooth_iterations": int(k)}
+
+
+def _keep_family(index, weight, blend_parent):
+    """Per vertex, the main bone (column 0) and at most one neighbour across a blending joint.
+
+    ``index``/``weight`` (n, m): distinct bones per row, weights decreasing along the row
+    (as :func:`_smooth` returns them); ``blend_parent`` (R,): the parent each bone blends
+    with at its head, else -2. The neighbour is the main bone's blend parent or its heaviest
+    blending child (the first such column: weights decrease), whichever weighs more (the parent
+    on a tie): the parent and a child of the main bone are not neighbours, and siblings never
+    share a vertex. The two are renormalised and sorted by decreasing weight (the main bone
+    first on a tie); other columns -1 / 0. Equal, bit for bit, to masking the whole (n, m)
+    array once per condition and sorting each row (tests/core/test_skin_weights.py keeps that
+    version as the reference), in about half the array passes: on a small mesh each pass costs
+    more than its arithmetic.
+    """
+    n, m = index.shape
+    out_i = np.full((n, m), -1, np.int64)
+    out_w = np.zeros((n, m))
+    main = index[:, 0]
+    live = main >= 0
+    if m < 2:
+        out_i[live, 0], out_w[live, 0] = main[live], 1.0
+        return out_i, out_w
+    rest = index[:, 1:]
+    bp = np.append(blend_parent, -2)                     # bp[-1]: an unused column has none
+    mp = np.where(live, bp[main], -2)
+    up = (rest == mp[:, None]) & (rest >= 0)
+    down = (bp[rest] == main[:, None]) & (rest >= 0) & live[:, None]
+    rows = np.arange(n)
+    w_up = np.where(up, weight[:, 1:], 0.0).max(axis=1)  # at most one parent per row
+    first_down = np.argmax(down, axis=1)
+    has_down = down[rows, first_down]
+    w_down = np.where(has_down, weight[rows, 1 + first_down], 0.0)
+    take_up = w_up >= w_down                              # w_up 0 (no parent): the child, if any
+    other = np.where(take_up, rest[rows, np.argmax(up, axis=1)], rest[rows, first_down])
+    w_other = np.where(take_up, w_up, w_down)
+    other = np.where(w_other > 0, other, -1)
+    w_main = np.where(live, weight[:, 0], 0.0)
+    total = w_main + w_other
+    ok = total > 0
+    w_main = np.divide(w_main, total, out=np.zeros(n), where=ok)
+    w_other = np.divide(w_other, total, out=np.zeros(n), where=ok)
+    swap = w_other > w_main
+    out_i[:, 0] = np.where(swap, other, np.where(w_main > 0, main, -1))
+    out_w[:, 0] = np.where(swap, w_other, w_main)
+    out_i[:, 1] = np.where(swap, main, other)
+    out_w[:, 1] = np.where(swap, w_main, w_other)
+    out_i[:, 1] = np.where(out_w[:, 1] > 0, out_i[:, 1], -1)
+    return out_i, out_w

@@ -385,3 +385,59 @@ def test_two_parts_get_two_roots():
     W = weight_matrix(ob, list(ob[GROUPS_KEY]))
     assert np.allclose(W.sum(axis=1), 1.0, atol=1e-6)
     assert np.abs(evaluated(ob) - V).max() < 1e-5
+
+
+# -- the bind's Blender side against straightforward references (issue 14's faster bind) -------------
+def test_armature_bones_equal_per_bone_reads():
+    from curveskel_addon.binding import armature_bones
+
+    V, F, sk = skeleton_of("star")
+    ob = mesh_object("star", V, F)
+    arm = build_armature(bpy.context, sk, "star.skeleton", bpy.context.scene.collection, ob.matrix_world)
+    arm.data.bones[2].use_deform = False
+    got = armature_bones(arm)
+    bones = list(arm.data.bones)
+    names = [b.name for b in bones]
+    assert list(got["names"]) == names
+    assert got["parent"].tolist() == [names.index(b.parent.name) if b.parent else -1 for b in bones]
+    assert got["deform"].tolist() == [b.use_deform for b in bones]
+    assert np.allclose(got["heads"], [b.head_local for b in bones])
+    assert np.allclose(got["tails"], [b.tail_local for b in bones])
+
+
+def test_written_groups_are_the_core_weights_named_as_the_bones():
+    """bind_mesh writes, per deforming bone in armature order, a group named as the bone holding
+    exactly bone_weights' weights (float32 in Blender), beside a user's own group."""
+    from curveskel_addon.binding import _edges, _vertices, armature_bones
+    from curveskel_addon.core.skin_weights import bone_weights
+
+    V, F, sk = skeleton_of("star")
+    ob = mesh_object("star", V, F)
+    ob.vertex_groups.new(name="user").add([0, 1], 0.3, 'REPLACE')
+    arm = build_armature(bpy.context, sk, "star.skeleton", bpy.context.scene.collection, ob.matrix_world)
+    arm.data.bones[1].use_deform = False
+    bind_mesh(ob, arm)
+    bones = armature_bones(arm)
+    index, weight, _ = bone_weights(_vertices(ob.data), None, bones["heads"], bones["tails"],
+                                    bones["parent"], bones["deform"], edges=_edges(ob.data))
+    deform = [nm for nm, d in zip(bones["names"], bones["deform"]) if d]
+    assert [g.name for g in ob.vertex_groups] == ["user"] + deform
+    assert list(ob[GROUPS_KEY]) == deform
+    by_index = {g.index: g.name for g in ob.vertex_groups}
+    for v in ob.data.vertices:
+        got = {by_index[g.group]: g.weight for g in v.groups}
+        user = got.pop("user", None)
+        assert user == pytest.approx(0.3) if v.index < 2 else user is None
+        want = {bones["names"][i]: np.float32(w) for i, w in zip(index[v.index], weight[v.index]) if i >= 0}
+        assert got == want
+
+
+def test_bind_refuses_a_group_name_blender_would_change():
+    """A bone whose name is taken by a group the bind must keep: Blender would rename the new
+    group, and the bind says so instead of writing weights under another name."""
+    from curveskel_addon.binding import write_weights
+
+    V, F, sk = skeleton_of("bent_capsule")
+    ob = mesh_object("L", V, F)
+    with pytest.raises(CurveSkelError):
+        write_weights(ob, ["a", "a"], np.zeros((len(V), 1), np.int64), np.ones((len(V), 1)))

@@ -304,3 +304,114 @@ def test_chain_boundaries_rigid_by_default(junction_blend):
     # inside a chain the joint at the arm's middle still blends 50/50
     mid = (np.abs(V[:, 0] - 2.0) < 0.07) & (np.abs(V[:, 1]) < 0.6)
     assert mid.any() and np.allclose(Wd[mid][:, 1], 0.5, atol=0.1)
+
+
+# -- the bind's building blocks against straightforward references (issue 14's faster bind) ---------
+def test_graph_arrays_equal_scipys_csr_of_the_closed_one_ring():
+    """_Graph builds its CSR arrays from sorted keys; they must be scipy's COO -> CSR of the
+    closed 1-ring (duplicate and reversed edges once, self-loops dropped, columns sorted)."""
+    import scipy.sparse as sp
+
+    from curveskel_addon.core.skin_weights import _Graph
+
+    rng = np.random.default_rng(3)
+    n = 40
+    E = rng.integers(0, n, size=(150, 2))
+    E = np.concatenate([E, E[:20, ::-1], E[:10], [[5, 5], [7, 7]]])     # reversed, repeated, loops
+    g = _Graph(E, n)
+    keep = E[E[:, 0] != E[:, 1]]
+    ar = np.arange(n)
+    C = sp.csr_matrix((np.ones(2 * len(keep) + n), (np.r_[keep[:, 0], keep[:, 1], ar],
+                                                    np.r_[keep[:, 1], keep[:, 0], ar])), shape=(n, n))
+    C.sort_indices()
+    assert np.array_equal(g.indptr, C.indptr) and np.array_equal(g.indices, C.indices)
+    assert np.array_equal(g.rows, np.repeat(ar, np.diff(C.indptr)))
+    assert np.array_equal(g.deg, np.diff(C.indptr) - 1)
+    assert np.array_equal(g.diag, g.indices == g.rows)
+    empty = _Graph(np.zeros((0, 2), np.int64), 0)
+    assert len(empty.indptr) == 1 and len(empty.indices) == 0
+    lone = _Graph(np.zeros((0, 2), np.int64), 3)                         # no edges: the diagonal
+    assert np.array_equal(lone.indices, [0, 1, 2]) and np.array_equal(lone.indptr, [0, 1, 2, 3])
+
+
+def test_float32_averaging_is_the_float64_one_rounded():
+    from curveskel_addon.core.skin_weights import _Graph
+
+    V, F = meshes.capsule()
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    g = _Graph(E, len(V))
+    S64, S32 = g.averaging(), g.averaging(np.float32)
+    assert S32.dtype == np.float32 and S64.dtype == np.float64
+    assert np.array_equal(S32.indptr, S64.indptr) and np.array_equal(S32.indices, S64.indices)
+    assert np.array_equal(S32.data, S64.data.astype(np.float32))
+    assert np.allclose(np.asarray(S64.sum(axis=1)).ravel(), 1.0)
+
+
+def test_closest_bone_is_the_first_of_the_exactly_closest():
+    """closest_bone (float32 screen, near-ties compared exactly) against every bone compared
+    exactly, the first of equal distances kept; points on shared joints tie exactly."""
+    from curveskel_addon.core.mapping import _pair_closest, closest_bone
+
+    rng = np.random.default_rng(7)
+    X = rng.normal(size=(30, 3))
+    bones = np.stack([np.arange(29), np.arange(1, 30)], 1)             # a chain: joints shared
+    bones = np.concatenate([bones, [[0, 5], [10, 20], [3, 3]]])        # branches, a zero-length bone
+    P = np.concatenate([rng.normal(size=(500, 3)) * 1.5, X, X[:5] + 1e-9])
+    got = closest_bone(P, X, bones)
+    d2 = np.stack([_pair_closest(P, np.broadcast_to(X[i], P.shape), np.broadcast_to(X[j], P.shape))[1]
+                   for i, j in bones], 1)
+    assert np.array_equal(got, np.argmin(d2, axis=1))                  # argmin: the first minimum
+    assert np.array_equal(got, closest_on_bones(P, X, bones)[0])
+    assert closest_bone(np.zeros((0, 3)), X, bones).shape == (0,)
+
+
+def _family_reference(index, weight, par, blends):
+    """bone_weights' family filter as first written: masks over the whole (n, m) array."""
+    main = index[:, :1]
+    ok = index >= 0
+    idx = np.maximum(index, 0)
+    pm = np.where(blends[main], par[main], -2)
+    pi = np.where(blends[idx], par[idx], -2)
+    up = ok & (idx == pm) & (idx != main)
+    down = ok & (pi == main) & (idx != main)
+    family = ok & ((idx == main) | up | down)
+    weight = np.where(family, weight, 0.0)
+    wd = np.where(down, weight, -1.0)
+    heaviest = np.argmax(wd, axis=1)[:, None]
+    down &= np.arange(down.shape[1])[None, :] == heaviest
+    weight = np.where(family & ~(idx == main) & ~up & ~down, 0.0, weight)
+    w_up = np.where(up, weight, 0.0).sum(axis=1, keepdims=True)
+    w_down = np.where(down, weight, 0.0).sum(axis=1, keepdims=True)
+    weight = np.where((up & (w_up < w_down)) | (down & (w_down <= w_up) & (w_up > 0)), 0.0, weight)
+    index = np.where(family, index, -1)
+    total = weight.sum(axis=1, keepdims=True)
+    weight = np.divide(weight, total, out=np.zeros_like(weight), where=total > 0)
+    order = np.argsort(-weight, axis=1, kind="stable")
+    index = np.take_along_axis(index, order, axis=1)
+    weight = np.take_along_axis(weight, order, axis=1)
+    index[weight <= 0] = -1
+    return index, weight
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_keep_family_equals_the_masked_reference(seed):
+    """The one-pass family filter gives the masked reference's arrays bit for bit: random trees,
+    rows of distinct bones with decreasing weights (ties included), empty rows and columns."""
+    from curveskel_addon.core.skin_weights import _keep_family
+
+    rng = np.random.default_rng(seed)
+    R, n, m = 12, 400, 4
+    par = np.array([-1] + [int(rng.integers(0, r)) for r in range(1, R)])
+    blends = (rng.random(R) < 0.7) & (par >= 0)
+    index = np.full((n, m), -1, np.int64)
+    weight = np.zeros((n, m))
+    for v in range(n):
+        k = int(rng.integers(0, m + 1)) if v % 50 else 0
+        near = [b for b in range(R) if par[b] == v % R or b == par[v % R]]
+        pool = list(dict.fromkeys([v % R] + near + list(rng.permutation(R))))[:k]
+        w = np.sort(rng.choice([0.5, 0.25, 0.125, 0.3, 0.1], size=k))[::-1]   # ties likely
+        index[v, :k], weight[v, :k] = pool, w / max(w.sum(), 1e-300)
+    want = _family_reference(index, weight, par, blends)
+    got = _keep_family(index, weight, np.where(blends, par, -2))
+    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    assert (got[0][:, 1] >= 0).sum() > 50                      # rows with two influences occur
