@@ -133,7 +133,7 @@ class PipelineState:
     log: list = field(default_factory=list)
     medial: tuple | None = None     # (M (k, 3), rho (k,)): medial points of surface samples
     medial_points: int = 0          # surface points the medial balls shrank against
-    key: np.ndarray | None = None   # (n,) numbering-free order of the vertices (geodesic f)
+    key: np.ndarray | None = None   # (n,) a quantity of the shape per vertex the draws read (geodesic f)
     areas: np.ndarray | None = None  # (n,) vertex areas, if the weights step computed them
     face_cross: np.ndarray | None = None  # (m, 3) vertex_area.face_cross, until the centring
     _inside: object = None
