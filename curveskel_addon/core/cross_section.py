@@ -38,7 +38,9 @@ from .mesh_graph import faces_around
 from .quality import orthonormal_frame
 from .rows import row_cross, take_rows
 
-__all__ = ["section_centroids", "section_loops", "vertex_edges", "polish_chains", "STEP", "ROUNDS",
+__all__ = ["section_centroids", "section_loops", "shared_sections", "shared_sections_many",
+           "vertex_edges", "polish_chains",
+           "STEP", "ROUNDS",
            "REACH", "FADE", "TIP_REACH", "SMOOTH", "LEAF_STEP"]
 
 #: Fraction of the way to the centroid a joint moves per round.
@@ -204,6 +206,104 @@ def section_loops(V, F, X, T, reach, *, face_of=None, vertex_edge=None):
     extent[j] = np.sqrt(far[cand])
     area_out[j] = area[cand]
     return C, extent, area_out
+
+
+def shared_sections(V, F, P, Q, reach, *, face_of=None, vertex_edge=None, test=None):
+    """Which points of the polyline ``P`` share their cross-section with the polyline ``Q``.
+
+    The plane through ``P[i]`` across ``P`` (normal along ``P`` there) cuts the mesh in loops;
+    point i shares its section when ``Q`` crosses that plane (at its crossing nearest ``P[i]``)
+    inside the same loop: the two curves run through one part of the shape there, however far
+    apart across it (two loops' sides in one web between two holes). Two limbs side by side
+    each have their own loop. :func:`shared_sections_many` does many pairs in one pass.
+
+    Parameters
+    ----------
+    V, F : the mesh
+    P : (k, 3) float, Q : (m, 3) float
+        The two polylines.
+    reach : float
+        Loops reaching farther than this from ``P[i]`` are not looked for.
+    face_of, vertex_edge : optional, as :func:`section_loops`.
+    test : (k,) bool, optional
+        Test only these points (the others False; tangents still from all).
+
+    Returns
+    -------
+    (k,) bool
+
+    Examples
+    --------
+    Two segments along x through the unit cube share every section:
+
+    >>> V = np.array([[x, y, z] for x in (0., 1) for y in (0., 1) for z in (0., 1)])
+    >>> F = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+    ...               [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    >>> shared_sections(V, F, [[0.2, 0.3, 0.5], [0.8, 0.3, 0.5]],
+    ...                 [[0.1, 0.7, 0.5], [0.9, 0.7, 0.5]], 2.0).tolist()
+    [True, True]
+    """
+    return shared_sections_many(V, F, [(P, Q, reach, test)], face_of=face_of,
+                                vertex_edge=vertex_edge)[0]
+
+
+def shared_sections_many(V, F, pairs, *, face_of=None, vertex_edge=None):
+    """:func:`shared_sections` of many ``(P, Q, reach, test)`` at once (one pass of the
+    section loops over all their points). Returns a list of (len(P),) bool."""
+    out, pts, nrm, rch, where = [], [], [], [], []
+    for n, (P, Q, reach, test) in enumerate(pairs):
+        P = np.asarray(P, np.float64).reshape(-1, 3)
+        Q = np.asarray(Q, np.float64).reshape(-1, 3)
+        out.append(np.zeros(len(P), bool))
+        i, q, T = _crossings(P, Q, test)
+        if len(i):
+            pts += [P[i], q]
+            nrm += [T[i], T[i]]
+            rch.append(np.full(2 * len(i), float(reach)))
+            where.append((n, i))
+    if not where:
+        return out
+    X, TT, R = np.concatenate(pts), np.concatenate(nrm), np.concatenate(rch)
+    C, extent, area = section_loops(V, F, X, TT, R, face_of=face_of, vertex_edge=vertex_edge)
+    at = 0
+    for n, i in where:
+        k = len(i)
+        a, b = slice(at, at + k), slice(at + k, at + 2 * k)
+        at += 2 * k
+        scale = max(float(R[a][0]), 1e-300)
+        # the same loop: the same area and centroid (each point's loop is computed on its own)
+        out[n][i] = (np.isfinite(extent[a]) & np.isfinite(extent[b]) & (area[a] > 0)
+                     & (np.abs(area[a] - area[b]) <= 1e-9 * area[a])
+                     & (np.linalg.norm(C[a] - C[b], axis=1) <= 1e-9 * scale))
+    return out
+
+
+def _crossings(P, Q, test=None):
+    """(i, q, T): the points of P (indices ``i``, among ``test``) whose plane across P (unit
+    normals ``T``, one per point of P) the polyline Q crosses, and Q's crossing ``q`` nearest
+    each of them."""
+    k = len(P)
+    none = (np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((k, 3)))
+    if k < 2 or len(Q) < 2:
+        return none
+    T = np.zeros_like(P)
+    T[1:-1] = P[2:] - P[:-2]
+    T[0], T[-1] = P[1] - P[0], P[-1] - P[-2]
+    nt = np.linalg.norm(T, axis=1, keepdims=True)
+    T = np.divide(T, nt, out=np.zeros_like(T), where=nt > 0)
+    h = np.einsum("kmd,kd->km", Q[None, :, :] - P[:, None, :], T)
+    # a segment whose ends lie on either side, or whose far end lies on the plane (a path
+    # ending there: its last joint)
+    flip = ((h[:, :-1] <= 0) != (h[:, 1:] <= 0)) | (h[:, 1:] == 0)
+    den = h[:, :-1] - h[:, 1:]
+    w = np.divide(h[:, :-1], den, out=np.ones_like(den), where=flip & (den != 0))
+    C = Q[None, :-1] + w[..., None] * (Q[None, 1:] - Q[None, :-1])     # (k, m-1, 3)
+    d = np.where(flip, np.linalg.norm(C - P[:, None, :], axis=2), np.inf)
+    has = flip.any(axis=1) & (nt[:, 0] > 0)
+    if test is not None:
+        has &= np.asarray(test, bool)
+    i = np.flatnonzero(has)
+    return i, C[i, np.argmin(d[i], axis=1)], T
 
 
 def _slab_vertices(V, X, T, reach, vertex_edge):

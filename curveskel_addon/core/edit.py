@@ -31,7 +31,7 @@ import numpy as np
 from .centreline import joint_adjacency
 from .quality import _point_segment_distance, skeleton_topology
 
-__all__ = ["chains", "leaf_chains", "merge_chains", "zip_parallel_chains", "collapse_short_bones", "prune_leaves", "compact", "chain_turns", "remove_sharp_turns", "edit_stage", "contain_stage", "undo_new_outside", "outside_worse", "put_back",
+__all__ = ["chains", "leaf_chains", "merge_chains", "zip_parallel_chains", "cycle_bones", "collapse_short_bones", "prune_leaves", "compact", "chain_turns", "remove_sharp_turns", "edit_stage", "apply_edit", "point_polyline_distance", "contain_stage", "undo_new_outside", "outside_worse", "put_back",
            "EDIT_CONSTANTS"]
 
 #: The edit stage's constants (pipeline defaults), named once.
@@ -421,7 +421,7 @@ def remove_sharp_turns(joints, bones, tol, max_turn=60.0, max_rounds=20, inside=
     return joints, bones, bone_map
 
 
-def _apply(state, joints, bones, bone_map):
+def apply_edit(state, joints, bones, bone_map):
     """An operator's result into the state, then sigma re-mapped and the radii refitted; an
     operator that changed nothing leaves the state as it was (the refit would repeat the last
     one exactly: the state's mapping and radii are always those of a refit)."""
@@ -451,10 +451,10 @@ def edit_stage(state, *, prune, simplify, max_joints, diag):
     out = {"joints_in": int(len(state.joints))}
     if prune > 0:
         n0 = len(state.joints)
-        _apply(state, *prune_leaves(state.joints, state.bones, prune))
+        apply_edit(state, *prune_leaves(state.joints, state.bones, prune))
         out["pruned_joints"] = int(n0 - len(state.joints))
     if C["zip_radius_fraction"] > 0:
-        _apply(state, *zip_parallel_chains(state.joints, state.bones, C["zip_radius_fraction"]))
+        apply_edit(state, *zip_parallel_chains(state.joints, state.bones, C["zip_radius_fraction"]))
 
     def merge(tol_scale):
         # a fraction of the local radius, capped at a fraction of the size, and the longest
@@ -462,13 +462,13 @@ def edit_stage(state, *, prune, simplify, max_joints, diag):
         grow = max(tol_scale / C["merge_radius_fraction"], 1.0)
         cap = C["merge_max_diag"] * diag * grow
         tol = np.minimum(tol_scale * state.joints[:, 3], cap)
-        _apply(state, *merge_chains(state.joints, state.bones, tol,
+        apply_edit(state, *merge_chains(state.joints, state.bones, tol,
                                     C["merge_max_length"] * diag * grow))
 
     if simplify > 0:
         merge(simplify)
     if C["sharp_turn"] < 180:
-        _apply(state, *remove_sharp_turns(
+        apply_edit(state, *remove_sharp_turns(
             state.joints, state.bones, C["sharp_radius_fraction"] * state.joints[:, 3],
             C["sharp_turn"], inside=lambda P: state.inside(P)))   # (built when first asked)
     scale = max(simplify, C["merge_radius_fraction"])
@@ -708,7 +708,7 @@ def contain_stage(state, inside_test, medial, *, diag, max_joints=0):
     return log
 
 
-def _to_polyline(P, Q):
+def point_polyline_distance(P, Q):
     """Distance of each point of P (k, 3) to the polyline Q (m, 3)."""
     if len(Q) == 1:
         return np.linalg.norm(P - Q[0], axis=1)
@@ -726,17 +726,19 @@ def _cycles(n_joints, bones):
     return skeleton_topology(n_joints, bones)["skeleton_cycles"]
 
 
-def _zip_pairs(joints, bones):
+def _zip_pairs(joints, bones, loops=False):
     """Pairs of paths (P, Q) that leave one junction s side by side: P a chain of s, Q a chain
     of s, or a chain of s shorter than s's radius continued by a chain of the junction it
-    reaches (two junctions of one part). Paths as (joints, bones) lists starting at s."""
+    reaches (two junctions of one part). Paths as (joints, bones) lists starting at s.
+    ``loops``: a chain from a junction back to it counts too (both its ends)."""
     J = len(joints)
     deg = np.bincount(bones.ravel(), minlength=J)
     inc = {}
     for js, bs in chains(J, bones):
-        # A loop from a junction back to it is left out: zipped with its neighbours it drew
-        # 3holes' loops worse (to_ref 0.0245 -> 0.0295 D, from_ref 0.022 -> 0.026 D).
-        if js[0] == js[-1]:
+        # A loop from a junction back to it is left out of the edit stage's zip: zipped with
+        # its neighbours there it drew 3holes' loops worse (to_ref 0.0245 -> 0.0295 D, from_ref
+        # 0.022 -> 0.026 D); the polish's zip by sections takes it (zip_parallel_chains).
+        if js[0] == js[-1] and not loops:
             continue
         for a, b in ((js, bs), (js[::-1], bs[::-1])):
             if deg[a[0]] >= 3:
@@ -745,7 +747,7 @@ def _zip_pairs(joints, bones):
         paths = list(own)
         for js, bs in own:
             e = js[-1]
-            if deg[e] >= 3 and _arc(joints[js, :3])[-1] < joints[s, 3]:
+            if e != s and deg[e] >= 3 and _arc(joints[js, :3])[-1] < joints[s, 3]:
                 for js2, bs2 in inc.get(e, []):
                     if js2[-1] != s and set(bs2).isdisjoint(bs):
                         paths.append((js + js2[1:], bs + bs2))
@@ -755,18 +757,23 @@ def _zip_pairs(joints, bones):
                     yield paths[i], paths[k]
 
 
-def _zip_extent(joints, P, Q, frac):
+def _zip_extent(joints, P, Q, frac, shared=None):
     """Last joint of P and of Q up to which each stays within ``frac`` of its radius of the
-    other (0: they part at once)."""
+    other, or shares its cross-section with the other (``shared``: (len(P),) and (len(Q),)
+    bool, or None: distance only) (0: they part at once)."""
     XP, XQ = joints[P, :3], joints[Q, :3]
-    okP = _to_polyline(XP, XQ) <= frac * joints[P, 3]
-    okQ = _to_polyline(XQ, XP) <= frac * joints[Q, 3]
+    okP = point_polyline_distance(XP, XQ) <= frac * joints[P, 3]
+    okQ = point_polyline_distance(XQ, XP) <= frac * joints[Q, 3]
+    if shared is not None:
+        okP |= shared[0]
+        okQ |= shared[1]
+        okP[0] = okQ[0] = True                    # the junction itself
     kP = int(np.argmin(okP)) - 1 if not okP.all() else len(P) - 1
     kQ = int(np.argmin(okQ)) - 1 if not okQ.all() else len(Q) - 1
     return max(kP, 0), max(kQ, 0)
 
 
-def zip_parallel_chains(joints, bones, frac, *, max_rounds=20):
+def zip_parallel_chains(joints, bones, frac, *, max_rounds=20, loops=False, sections=None):
     """Merge two paths that leave a junction side by side into one (merge).
 
     Two chains of one junction whose joints stay within ``frac`` of their radius of each
@@ -777,6 +784,15 @@ def zip_parallel_chains(joints, bones, frac, *, max_rounds=20):
     part). A zip that would change the number of cycles (the two paths go round a hole) is
     not made.
 
+    ``loops``: chains from a junction back to it are paired too. ``sections``: a callable
+    taking a list of ``(JP, JQ)``, two paths' joint rows (x, y, z, r), and returning for each
+    a (len(JP),) bool: which joints of the first share their cross-section with the second
+    (:func:`.cross_section.shared_sections_many`; all pairs of a round in one call) (:func:`.cross_section.shared_sections`); where both paths run on cycles
+    (:func:`cycle_bones`), sharing a section counts as side by side whatever the distance: two
+    loops through one web between holes, apart across the web's depth (3holes: 0.045 D, half
+    a radius). Limbs and trunks (no cycle) are judged by distance alone: an arm's first joints
+    lie in the chest's section.
+
     Returns joints, bones, bone_map.
     """
     joints = np.asarray(joints, np.float64)
@@ -785,11 +801,23 @@ def zip_parallel_chains(joints, bones, frac, *, max_rounds=20):
     refused = set()
     for _ in range(max_rounds):
         best = None
-        for (P, Pb), (Q, Qb) in _zip_pairs(joints, bones):
+        cands = []
+        for (P, Pb), (Q, Qb) in _zip_pairs(joints, bones, loops):
             key = (tuple(sorted(Pb)), tuple(sorted(Qb)))
-            if key in refused or (key[1], key[0]) in refused:
-                continue
-            kP, kQ = _zip_extent(joints, np.asarray(P), np.asarray(Q), frac)
+            if key not in refused and (key[1], key[0]) not in refused:
+                cands.append((P, Pb, Q, Qb, key))
+        shared = [None] * len(cands)
+        if sections is not None and cands:
+            on_cycle = cycle_bones(len(joints), bones)
+            ask = [n for n, (P, Pb, Q, Qb, _) in enumerate(cands)
+                   if on_cycle[Pb].all() and on_cycle[Qb].all()]
+            if ask:
+                got = sections([(joints[cands[n][0]], joints[cands[n][2]]) for n in ask]
+                               + [(joints[cands[n][2]], joints[cands[n][0]]) for n in ask])
+                for j, n in enumerate(ask):
+                    shared[n] = (got[j], got[len(ask) + j])
+        for (P, Pb, Q, Qb, key), sh in zip(cands, shared):
+            kP, kQ = _zip_extent(joints, np.asarray(P), np.asarray(Q), frac, sh)
             if kP < 1 or kQ < 1:
                 continue
             L = min(_arc(joints[P[:kP + 1], :3])[-1], _arc(joints[Q[:kQ + 1], :3])[-1])
@@ -809,6 +837,45 @@ def zip_parallel_chains(joints, bones, frac, *, max_rounds=20):
         joints, bones, m = out
         bone_map = m[bone_map]
     return joints, bones, bone_map
+
+
+def cycle_bones(n_joints, bones):
+    """(B,) bool: the bones that lie on a cycle of the skeleton (every bone but the bridges,
+    whose removal splits their part in two).
+
+    Examples
+    --------
+    >>> cycle_bones(5, np.array([[0, 1], [1, 2], [2, 0], [2, 3], [3, 4]])).tolist()
+    [True, True, True, False, False]
+    """
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    B = len(bones)
+    out = np.zeros(B, bool)
+    if not B:
+        return out
+    # a bone is on a cycle iff its ends stay connected without it
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+    used = np.unique(bones)
+    G = sp.coo_matrix((np.ones(B), (bones[:, 0], bones[:, 1])), shape=(n_joints, n_joints))
+    n_parts = connected_components(G, directed=False)[0] - (n_joints - len(used))
+    if B - len(used) + n_parts == 0:            # a forest: no bone is on a cycle
+        return out
+    # a chain's bones are all bridges or all on a cycle: one test per chain (its ends stay
+    # connected without its bones; a chain from a junction back to it is a cycle)
+    keep = np.ones(B, bool)
+    for js, bs in chains(n_joints, bones):
+        if js[0] == js[-1]:
+            out[bs] = True
+            continue
+        keep[bs] = False
+        rest = bones[keep]
+        keep[bs] = True
+        G = sp.coo_matrix((np.ones(len(rest)), (rest[:, 0], rest[:, 1])),
+                          shape=(n_joints, n_joints))
+        lab = connected_components(G, directed=False)[1]
+        out[bs] = lab[js[0]] == lab[js[-1]]
+    return out
 
 
 def _zip(joints, bones, P, Pb, Q, Qb):

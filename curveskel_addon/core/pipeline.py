@@ -33,8 +33,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .centreline import SURFACE_RADII_ROUNDS, centre_stage, fit_radii_surface, smooth_chains
-from .cross_section import polish_chains
-from .edit import contain_stage, edit_stage, outside_worse, put_back
+from .cross_section import polish_chains, shared_sections_many
+from .edit import (EDIT_CONSTANTS, apply_edit, contain_stage, edit_stage, outside_worse,
+                   point_polyline_distance, put_back, zip_parallel_chains)
 from .errors import CurveSkelError
 from .flaps import lay_flaps
 from .junctions import onto_trunks
@@ -76,6 +77,15 @@ FLAPS = True
 #: ... and the polish's moves that take a bone further out of the mesh are put back
 #: (:func:`.edit.undo_new_outside`).
 INSIDE_GUARD = True
+#: Before the polish, two loops' sides running through one part (the web between two holes)
+#: are zipped into one strand where they share cross-sections (:func:`.edit.zip_parallel_chains`
+#: with :func:`.cross_section.shared_sections`): 3holes' left web held two strands 0.045 D apart
+#: across the web's depth, which the polish would pull together and its fold guard then put back.
+SHEET_ZIP = True
+#: Sections are looked for within this many of the two paths' largest radius: where a web meets
+#: the band round a hole its section is the band's, ~0.6 of 3holes' width from the joint (2
+#: radii found the web's own sections only, and no zip; 4 and 8 zip the same).
+SHEET_ZIP_REACH = 4.0
 #: The final radii are refined on the silhouette (the union of round cones) against the surface
 #: (:mod:`.silhouette_radii`), after the nearest-bone fit.
 SILHOUETTE_RADII = True
@@ -334,6 +344,10 @@ class SkeletonRun:
         bone further out of the mesh, put back,
         radii refitted to the surface. Returns the number of chain joints that moved."""
         st = self.state
+        if SHEET_ZIP:
+            apply_edit(st, *zip_parallel_chains(st.joints, st.bones,
+                                                EDIT_CONSTANTS["zip_radius_fraction"],
+                                                loops=True, sections=self._shared_sections))
         before = st.joints.copy()
         laid = np.zeros(0, np.int64)
         if FLAPS:
@@ -374,6 +388,39 @@ class SkeletonRun:
         else:
             st.remap()
         return moved
+
+    def _shared_sections(self, pairs) -> list:
+        """For each path pair ``(JP, JQ)`` (joint rows x, y, z, r), which joints of ``JP`` share
+        their cross-section with ``JQ``, looked for within ``SHEET_ZIP_REACH`` of the pair's
+        largest radius (:func:`.cross_section.shared_sections_many`). The zip goes only as far
+        as the first joint past the junction that shares neither its section nor the distance
+        rule's half radius, and most pairs part at once: their first joint is tested alone,
+        then the rest of the pairs that pass it."""
+        st = self.state
+        frac = EDIT_CONSTANTS["zip_radius_fraction"]
+        geo = dict(face_of=st.faces_around, vertex_edge=st.vertex_edges)
+        reach, near, close = [], [], []
+        for JP, JQ in pairs:
+            reach.append(SHEET_ZIP_REACH * float(max(np.abs(JP[:, 3]).max(),
+                                                     np.abs(JQ[:, 3]).max())))
+            d = point_polyline_distance(JP[:, :3], JQ[:, :3])
+            near.append(d <= reach[-1])         # farther: no loop within the reach holds both
+            close.append(d <= frac * JP[:, 3])  # the distance rule passes anyway
+        one = [np.arange(len(JP)) == 1 for JP, _ in pairs]
+        got = shared_sections_many(st.V, st.F, [(JP[:, :3], JQ[:, :3], r, t & m)
+                                                for (JP, JQ), r, t, m in zip(pairs, reach, one, near)],
+                                   **geo)
+        rest = []
+        for n, (JP, _) in enumerate(pairs):
+            if len(JP) > 2 and (got[n][1] or close[n][1]):
+                rest.append(n)
+        if rest:
+            more = shared_sections_many(
+                st.V, st.F, [(pairs[n][0][:, :3], pairs[n][1][:, :3], reach[n],
+                              (np.arange(len(pairs[n][0])) >= 2) & near[n]) for n in rest], **geo)
+            for n, g in zip(rest, more):
+                got[n] = got[n] | g
+        return got
 
     def _silhouette_radii(self) -> np.ndarray:
         """The radii refined on the silhouette itself (:mod:`.silhouette_radii`): every vertex

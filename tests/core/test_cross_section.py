@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from curveskel_addon.core.cross_section import (FADE, REACH, STEP, polish_chains,
+from curveskel_addon.core.cross_section import (FADE, REACH, STEP, polish_chains, shared_sections,
                                                 section_centroids, vertex_edges)
 from curveskel_addon.core.quality import InsideTest
 from tests.meshes import BAR, PLATE, box_bar, capsule, plate_with_holes
@@ -135,3 +135,21 @@ def test_a_section_beyond_reach_and_fade_moves_nothing_and_the_step_fades_betwee
     assert moved(1.01 * ext / REACH) == pytest.approx(STEP * 0.1, abs=1e-9)
     mid = moved(ext / (REACH + FADE / 2))
     assert 0.2 * STEP * 0.1 < mid < 0.8 * STEP * 0.1
+
+
+def test_two_curves_in_one_part_share_their_sections_and_two_parts_do_not(bar, plate):
+    """Two lines along the bar, 0.7 apart across its 1 x 1 section, cut by the same section
+    loop at every joint: shared. On the plate (holes at x = -2, 0, 2 of radius 0.5 through a
+    6 x 2 x 0.4 plate) the lines along y through the two webs at x = -1 and x = 1 are cut in
+    two loops (the hole between them): not shared; two lines in the one web at x = -1, 0.3
+    apart across the web's 1.0 width: shared."""
+    V, F = bar
+    P = np.column_stack([np.linspace(-3, 3, 7), np.full(7, -0.35), np.zeros(7)])
+    Q = P + [0.0, 0.7, 0.2]
+    assert shared_sections(V, F, P, Q, 2.0).all()
+    V, F = plate
+    y = np.linspace(-0.8, 0.8, 5)
+    web_a = np.column_stack([np.full(5, -1.0), y, np.zeros(5)])
+    web_b = web_a + [2.0, 0.0, 0.0]
+    assert not shared_sections(V, F, web_a, web_b, 4.0).any()
+    assert shared_sections(V, F, web_a, web_a + [0.3, 0.0, 0.1], 4.0)[1:-1].all()

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from curveskel_addon.core.edit import (chain_turns, chains, collapse_short_bones, merge_chains,
+from curveskel_addon.core.edit import (chain_turns, chains, collapse_short_bones, cycle_bones,
+                                       merge_chains,
                                        prune_leaves, remove_sharp_turns, undo_new_outside,
                                        zip_parallel_chains)
 from curveskel_addon.core.quality import crossing_pairs
@@ -381,3 +382,57 @@ def test_zip_joins_two_junctions_of_one_part_into_a_shared_segment():
     # and the segment between them is one chain on x = 0
     between = (deg == 2) & (np.abs(J2[:, 1]) < 2)
     assert np.abs(J2[between, 0]).max() < 0.1
+
+
+def _two_loops_through_a_web(gap=1.4):
+    """Two loops from one junction (0, 0), their inner sides running up side by side ``gap``
+    apart (radius 1: beyond the distance rule's half radius) to y = 2, then parting."""
+    h = gap / 2
+    pts = [(0, 0),
+           (-h, 1), (-h, 2), (-3, 3), (-5, 0), (-3, -3),      # left loop
+           (h, 1), (h, 2), (3, 3), (5, 0), (3, -3)]           # right loop
+    B = [(0, 1), (1, 2), (2, 3), (3, 4), (4, 5), (5, 0),
+         (0, 6), (6, 7), (7, 8), (8, 9), (9, 10), (10, 0)]
+    return _joints(pts, 1.0), np.array(B)
+
+
+def _web(pairs):
+    """A stand-in for cross_section.shared_sections_many: joints within |x| < 1 lie in one web."""
+    return [np.abs(JP[:, 0]) < 1.0 for JP, JQ in pairs]
+
+
+def test_zip_by_shared_sections_joins_two_loops_sides_in_one_web():
+    J, B = _two_loops_through_a_web()
+    assert _cycles(len(J), B) == 2
+    # by distance alone (1.4 apart, radius 1) nothing is zipped, loops or not
+    for loops in (False, True):
+        J2, B2, _ = zip_parallel_chains(J, B, 0.5, loops=loops)
+        assert np.array_equal(B2, B)
+    # sharing their sections, the two sides become one strand up the web, forking at its top
+    J2, B2, m = zip_parallel_chains(J, B, 0.5, loops=True, sections=_web)
+    assert _cycles(len(J2), B2) == 2
+    deg = np.bincount(B2.ravel(), minlength=len(J2))
+    forks = J2[deg == 3, :3]
+    assert len(forks) == 2
+    assert np.allclose(sorted(forks[:, 1]), [0.0, 2.0]) and np.allclose(forks[:, 0], 0.0)
+    assert m.shape == (len(B),) and m.min() >= 0
+    # the loops' chains from a junction back to it are needed: without them nothing pairs
+    J3, B3, _ = zip_parallel_chains(J, B, 0.5, loops=False, sections=_web)
+    assert np.array_equal(B3, B)
+
+
+def test_zip_by_shared_sections_leaves_limbs_alone():
+    # two limbs (no cycle) 1.4 apart whose sections a test would call shared (a chest): the
+    # section rule applies to loops' sides only, the distance rule leaves them apart
+    J, B = _fork(1.4)
+    J2, B2, _ = zip_parallel_chains(J, B, 0.5, loops=True,
+                                    sections=lambda pairs: [np.ones(len(p[0]), bool) for p in pairs])
+    assert np.array_equal(B2, B) and np.array_equal(J2, J)
+
+
+def test_cycle_bones_are_the_bones_that_are_not_bridges():
+    J, B = _two_loops_through_a_web()
+    assert cycle_bones(len(J), B).all()
+    tail = np.vstack([B, [(4, 11)]])
+    got = cycle_bones(12, tail)
+    assert got[:-1].all() and not got[-1]
