@@ -337,7 +337,9 @@ class SkeletonRun:
         return self._finished
 
     def _polish(self) -> int:
-        """The polish stage: a flap's chain laid into the flap's middle (:mod:`.flaps`), other
+        """The polish stage: two loops' sides in one part zipped into one strand where they
+        share cross-sections (``SHEET_ZIP``), a flap's chain laid into the flap's middle
+        (:mod:`.flaps`), other
         chain joints and tips towards their cross-sections' centroids
         (:func:`.cross_section.polish_chains`), junctions onto their trunks
         (:func:`.junctions.onto_trunks`), joints moved into a new fold or crossing, or taking a
