@@ -39,9 +39,8 @@ from .quality import orthonormal_frame
 from .rows import row_cross, take_rows
 
 __all__ = ["section_centroids", "section_loops", "shared_sections", "shared_sections_many",
-           "vertex_edges", "polish_chains",
-           "STEP", "ROUNDS",
-           "REACH", "FADE", "TIP_REACH", "SMOOTH", "LEAF_STEP"]
+           "vertex_edges", "polish_chains", "STEP", "ROUNDS", "REACH", "FADE", "TIP_REACH", "SMOOTH",
+           "LEAF_STEP"]
 
 #: Fraction of the way to the centroid a joint moves per round.
 STEP = 0.5

@@ -27,12 +27,16 @@ Operators
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
 from .centreline import joint_adjacency
 from .quality import _point_segment_distance, skeleton_topology
 
-__all__ = ["chains", "leaf_chains", "merge_chains", "zip_parallel_chains", "cycle_bones", "collapse_short_bones", "prune_leaves", "compact", "chain_turns", "remove_sharp_turns", "edit_stage", "apply_edit", "point_polyline_distance", "contain_stage", "undo_new_outside", "outside_worse", "put_back",
-           "EDIT_CONSTANTS"]
+__all__ = ["chains", "leaf_chains", "merge_chains", "zip_parallel_chains", "cycle_bones",
+           "collapse_short_bones", "prune_leaves", "compact", "chain_turns", "remove_sharp_turns",
+           "edit_stage", "apply_edit", "point_polyline_distance", "contain_stage",
+           "outside_worse", "put_back", "EDIT_CONSTANTS"]
 
 #: The edit stage's constants (pipeline defaults), named once.
 EDIT_CONSTANTS = {
@@ -512,34 +516,16 @@ def _outside_counts(inside_test, A, B, k):
     return _outside_per_bone(inside_test, X, np.stack([seg, seg + len(A)], 1), k)[0].sum(1)
 
 
-def undo_new_outside(joints, bones, before, inside_test, *, rounds: int | None = None) -> np.ndarray:
-    """Put back the joints of bones that have more samples outside the mesh than in ``before``
-    (in place, positions only).
+def outside_worse(bones, before, inside_test):
+    """``worse(X)`` for :func:`put_back`: the bones with more samples outside the mesh at ``X``
+    than at ``before``.
 
     Why: the polish moves chain joints to their sections' centroids and junctions onto their
     trunks, each checked to lie inside, but a bone between two inside joints can still cut a
     corner out of the mesh (a finger's root, the web between two holes): with other draws of the
     medial samples the polish took hand to inside 0.979 and armadillo to 0.979 from 0.984-0.985
-    after the contain stage. Rounds as :func:`put_back`.
-
-    Parameters
-    ----------
-    joints : (J, 4) float, changed in place
-    bones : (B, 2) int
-    before : (J, 4) float, the same joints before the moves
-    inside_test : callable (k, 3) -> (k,) bool
-
-    Returns
-    -------
-    (J,) bool : the joints put back.
-    """
-    return put_back(joints, bones, before, outside_worse(bones, before, inside_test),
-                    rounds=rounds)
-
-
-def outside_worse(bones, before, inside_test):
-    """``worse(X)`` for :func:`put_back`: the bones with more samples outside the mesh at ``X``
-    than at ``before``."""
+    after the contain stage (the polish puts such joints back, with its fold guard, in one
+    :func:`put_back`)."""
     k = EDIT_CONSTANTS["contain_samples"]
     if not len(bones):
         return lambda X: np.zeros(0, np.int64)
@@ -553,7 +539,7 @@ def put_back(joints, bones, before, worse, *, rounds: int | None = None) -> np.n
     positions only); ``rounds`` caps them (None: as many as it takes, at most one per joint,
     so the guard's promise holds: putting one joint back can make a neighbour's bone fold, and
     three rounds left such a fold on 3holes with 1e-4 D vertex noise). The guards after a stage
-    that moves joints use it (:func:`undo_new_outside`, :func:`.pipeline.undo_new_folds`).
+    that moves joints use it (:func:`outside_worse`, :func:`.pipeline.fold_worse`).
 
     Returns
     -------
@@ -787,8 +773,8 @@ def zip_parallel_chains(joints, bones, frac, *, max_rounds=20, loops=False, sect
     ``loops``: chains from a junction back to it are paired too. ``sections``: a callable
     taking a list of ``(JP, JQ)``, two paths' joint rows (x, y, z, r), and returning for each
     a (len(JP),) bool: which joints of the first share their cross-section with the second
-    (:func:`.cross_section.shared_sections_many`; all pairs of a round in one call) (:func:`.cross_section.shared_sections`); where both paths run on cycles
-    (:func:`cycle_bones`), sharing a section counts as side by side whatever the distance: two
+    (:func:`.cross_section.shared_sections_many`; all pairs of a round in one call); where both
+    paths run on cycles (:func:`cycle_bones`), sharing a section counts as side by side whatever the distance: two
     loops through one web between holes, apart across the web's depth (3holes: 0.045 D, half
     a radius). Limbs and trunks (no cycle) are judged by distance alone: an arm's first joints
     lie in the chest's section.
@@ -853,13 +839,7 @@ def cycle_bones(n_joints, bones):
     out = np.zeros(B, bool)
     if not B:
         return out
-    # a bone is on a cycle iff its ends stay connected without it
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import connected_components
-    used = np.unique(bones)
-    G = sp.coo_matrix((np.ones(B), (bones[:, 0], bones[:, 1])), shape=(n_joints, n_joints))
-    n_parts = connected_components(G, directed=False)[0] - (n_joints - len(used))
-    if B - len(used) + n_parts == 0:            # a forest: no bone is on a cycle
+    if _cycles(n_joints, bones) == 0:           # a forest: no bone is on a cycle
         return out
     # a chain's bones are all bridges or all on a cycle: one test per chain (its ends stay
     # connected without its bones; a chain from a junction back to it is a cycle)

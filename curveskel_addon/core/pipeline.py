@@ -75,7 +75,7 @@ TRUNK_JUNCTIONS = True
 #: flap's middle first, and stays there (:mod:`.flaps`).
 FLAPS = True
 #: ... and the polish's moves that take a bone further out of the mesh are put back
-#: (:func:`.edit.undo_new_outside`).
+#: (:func:`.edit.outside_worse`).
 INSIDE_GUARD = True
 #: Before the polish, two loops' sides running through one part (the web between two holes)
 #: are zipped into one strand where they share cross-sections (:func:`.edit.zip_parallel_chains`

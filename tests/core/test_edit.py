@@ -7,9 +7,8 @@ import numpy as np
 import pytest
 
 from curveskel_addon.core.edit import (chain_turns, chains, collapse_short_bones, cycle_bones,
-                                       merge_chains,
-                                       prune_leaves, remove_sharp_turns, undo_new_outside,
-                                       zip_parallel_chains)
+                                       merge_chains, outside_worse, prune_leaves, put_back,
+                                       remove_sharp_turns, zip_parallel_chains)
 from curveskel_addon.core.quality import crossing_pairs
 
 
@@ -211,8 +210,8 @@ def test_remove_sharp_turns_keeps_a_corner_whose_chord_crosses_a_hole():
     assert len(J) == 2
 
 
-# -- undo_new_outside --------------------------------------------------------------------------------
-def test_undo_new_outside_puts_back_a_bone_moved_across_a_hole():
+# -- put_back with outside_worse (the polish's inside guard) ----------------------------------------------------------------------------
+def test_the_inside_guard_puts_back_a_bone_moved_across_a_hole():
     # a chain above the hole; joints 1 and 2 moved down beside it, each inside (0.25 from its
     # centre), but the bone between them now runs 0.05 from the centre: both go back; joint 0
     # moved up stays (its bone stays inside)
@@ -222,14 +221,15 @@ def test_undo_new_outside_puts_back_a_bone_moved_across_a_hole():
     J[1, :2] = (0.25, 0.05)
     J[2, :2] = (0.75, 0.05)
     assert _outside_hole(J[:, :3]).all()
-    back = undo_new_outside(J, _path(4), before, _outside_hole)
+    back = put_back(J, _path(4), before, outside_worse(_path(4), before, _outside_hole))
     assert back.tolist() == [False, True, True, False]
     np.testing.assert_array_equal(J[1:], before[1:])
     assert J[0, 1] == 0.6
     # nothing outside: nothing put back
     J = before.copy()
     J[1, 1] = 0.3
-    assert not undo_new_outside(J, _path(4), before, _outside_hole).any() and J[1, 1] == 0.3
+    assert not put_back(J, _path(4), before, outside_worse(_path(4), before, _outside_hole)).any()
+    assert J[1, 1] == 0.3
 
 
 # -- prune_leaves ------------------------------------------------------------------------------------
