@@ -144,7 +144,7 @@ def two_capsules():
 # A curve is returned as (X (k, 3) float, bones (b, 2) int): any form
 # ``curveskel_addon.core.quality.curve_distances`` takes.
 
-__all__ += ["plate_with_holes", "box_bar", "bent_tube", "polyline", "union_curves",
+__all__ += ["plate_with_holes", "box_bar", "t_beam", "t_beam_centroid_y", "bent_tube", "polyline", "union_curves",
             "capsule_axis", "torus_axis", "bent_capsule_axis", "star_axes", "box_bar_axis",
             "bent_tube_axis", "plate_hole_rings", "PLATE", "BAR", "BENT_TUBE"]
 
@@ -168,6 +168,26 @@ def plate_with_holes(size=PLATE["size"], hole_radius=PLATE["hole_radius"], hole_
         plate = plate - m3.Manifold.cylinder(2 * size[2], hole_radius, hole_radius, n_hole,
                                              True).translate([x, 0.0, 0.0])
     return _to_arrays(plate.refine_to_length(edge))
+
+
+def t_beam(length: float = 8.0, web=(1.5, 0.2), flange=(1.2, 0.2), edge: float = 0.15):
+    """A T-section beam along x (rocker-arm's lever, made plain): a web ``web`` = (height,
+    thickness) from y = -height to 0, centred on z = 0, under a flange ``flange`` = (width,
+    thickness) from y = 0 up, centred on z = 0; manifold3d union, edges refined to ``edge``.
+    The section's area centroid is at y = :func:`t_beam_centroid_y`, z = 0. Returns (V, F)."""
+    import manifold3d as m3
+
+    (wh, wt), (fw, ft) = web, flange
+    w = m3.Manifold.cube([length, wh, wt], center=True).translate([0.0, -wh / 2, 0.0])
+    # the flange overlaps the web by a hair so the union is one solid
+    f = m3.Manifold.cube([length, ft + 1e-3, fw], center=True).translate([0.0, ft / 2 - 5e-4, 0.0])
+    return _to_arrays((w + f).refine_to_length(edge))
+
+
+def t_beam_centroid_y(web=(1.5, 0.2), flange=(1.2, 0.2)) -> float:
+    """The y of :func:`t_beam`'s section's area centroid."""
+    (wh, wt), (fw, ft) = web, flange
+    return (wh * wt * (-wh / 2) + fw * ft * (ft / 2)) / (wh * wt + fw * ft)
 
 
 def box_bar(size=BAR["size"], edge: float = 0.15):

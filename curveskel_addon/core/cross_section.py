@@ -40,7 +40,7 @@ from .rows import row_cross, take_rows
 
 __all__ = ["section_centroids", "section_loops", "shared_sections", "shared_sections_many",
            "vertex_edges", "polish_chains", "STEP", "ROUNDS", "REACH", "FADE", "TIP_REACH", "SMOOTH",
-           "LEAF_STEP"]
+           "LEAF_STEP", "OWN_REACH", "OWN_RATIO"]
 
 #: Fraction of the way to the centroid a joint moves per round.
 STEP = 0.5
@@ -58,6 +58,17 @@ SMOOTH = 0.3
 #: Fraction of the way a tip moves per round (its section is the limb's end; the whole way: a
 #: tip left off the axis tilts its neighbour's plane).
 LEAF_STEP = 1.0
+#: A section beyond ``REACH`` radii is still the part's own, and its joint moves a full step,
+#: when no other part of the skeleton crosses the plane inside the loop and the chain's
+#: neighbouring joints' sections reach as far (within ``OWN_RATIO``): the part is a prism there
+#: whose section is wider than the radius says, not a limb's root whose plane takes in the
+#: body. rocker-arm's lever is a T-section beam (a thin web 0.3 wide under a flange): its fitted
+#: radii are 0.05-0.1 and its sections reach 2.2-3.7 radii; held to ``REACH`` the lever ran
+#: along the web's free edge, 0.06 below the centroid. Up to this many radii...
+OWN_REACH = 8.0
+#: ... fading to none over ``FADE`` ratios beyond this one (spot's hind leg: its root joint's
+#: section takes in the belly, 1.6x its neighbour's; a T-beam's run within 1.2x).
+OWN_RATIO = 1.5
 
 
 def section_centroids(V, F, X, T, reach, *, face_of=None, vertex_edge=None):
@@ -405,11 +416,14 @@ def polish_chains(V, F, joints, bones, inside, *, rounds=ROUNDS, step=STEP, reac
         T = np.divide(T, nt, out=np.zeros_like(T), where=nt > 0)
         r = J[moving, 3]
         rr = reach + np.where(tip, TIP_REACH, 0.0)
-        C, extent = section_centroids(V, F, X[moving], T, (rr + FADE) * r, face_of=face_of,
-                                      vertex_edge=vertex_edge)
+        C, extent, area = section_loops(V, F, X[moving], T, np.maximum(rr, OWN_REACH) * r,
+                                        face_of=face_of, vertex_edge=vertex_edge)
         # full step for a section within `reach` radii, none beyond `reach + FADE`: a loop
         # near the limit (a limb's root) does not switch a joint's move on and off
-        w = np.clip((rr + FADE) - extent / np.maximum(r, 1e-300), 0.0, FADE) / FADE
+        er = extent / np.maximum(r, 1e-300)
+        w = np.clip((rr + FADE) - er, 0.0, FADE) / FADE
+        w = np.maximum(w, _own_weight(V, F, X, T, moving, tip, C, extent, area, er, w, bones,
+                                      face_of, vertex_edge))
         moved = int(np.count_nonzero(w > 0))
         Y = X.copy()
         Y[moving] += (np.where(tip, LEAF_STEP, step) * w)[:, None] * (C - X[moving])
@@ -424,6 +438,57 @@ def polish_chains(V, F, joints, bones, inside, *, rounds=ROUNDS, step=STEP, reac
         Y[stay] = X[stay]
         X = Y
     return X, moved
+
+
+def _own_weight(V, F, X, T, moving, tip, C, extent, area, er, w, bones, face_of, vertex_edge):
+    """(k,) the step weight of the moving joints whose sections reach beyond ``REACH`` radii
+    but are their part's own (``OWN_REACH``, ``OWN_RATIO``); 0 for the others. Only a joint
+    between two chain joints (not a tip, not next to a junction or a tip) can tell: its run's
+    sections on both sides are the comparison."""
+    from .centreline import chain_neighbours
+    out = np.zeros(len(moving))
+    ex = np.full(len(X), np.nan)
+    ex[moving[~tip]] = extent[~tip]
+    _, na, nb = chain_neighbours(bones, len(X))      # moving starts with these chain joints
+    ratio = np.full(len(moving), np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.maximum(extent[:len(na)] / ex[na], extent[:len(na)] / ex[nb])
+    ratio[:len(na)] = np.where(np.isfinite(r), r, np.inf)
+    wo = (np.clip(OWN_REACH - er, 0.0, FADE) / FADE
+          * np.clip(OWN_RATIO + FADE - ratio, 0.0, FADE) / FADE)
+    ask = np.flatnonzero((wo > w) & np.isfinite(extent) & (area > 0))
+    if not len(ask):
+        return out
+    own = ~_holds_other_bones(V, F, X, bones, moving[ask], T[ask], C[ask], extent[ask],
+                              area[ask], face_of, vertex_edge)
+    out[ask[own]] = wo[ask[own]]
+    return out
+
+
+def _holds_other_bones(V, F, X, bones, idx, T, C, extent, area, face_of, vertex_edge):
+    """(k,) bool: whether a bone not at joint ``idx[i]`` crosses the plane through ``X[idx[i]]``
+    (normal ``T[i]``) inside the same section loop (centroid ``C[i]``, ``area[i]``,
+    ``extent[i]``)."""
+    A, B = X[bones[:, 0]], X[bones[:, 1]]
+    hA = np.einsum("kbd,kd->kb", A[None] - X[idx][:, None], T)
+    hB = np.einsum("kbd,kd->kb", B[None] - X[idx][:, None], T)
+    cross = ((hA <= 0) != (hB <= 0)) & (bones[None, :, 0] != idx[:, None]) \
+        & (bones[None, :, 1] != idx[:, None])
+    i, j = np.nonzero(cross)
+    t = hA[i, j] / (hA[i, j] - hB[i, j])
+    q = A[j] + t[:, None] * (B[j] - A[j])
+    near = np.linalg.norm(q - X[idx[i]], axis=1) <= extent[i]
+    i, q = i[near], q[near]
+    out = np.zeros(len(idx), bool)
+    if not len(i):
+        return out
+    # the same loop: the same area and centroid (as shared_sections_many)
+    Cq, eq, aq = section_loops(V, F, q, T[i], 2.0 * extent[i], face_of=face_of,
+                               vertex_edge=vertex_edge)
+    same = (np.isfinite(eq) & (np.abs(aq - area[i]) <= 1e-9 * area[i])
+            & (np.linalg.norm(Cq - C[i], axis=1) <= 1e-9 * extent[i]))
+    out[i[same]] = True
+    return out
 
 
 def _planes(bones, n_joints):

@@ -7,10 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from curveskel_addon.core import cross_section
 from curveskel_addon.core.cross_section import (FADE, REACH, STEP, polish_chains, shared_sections,
                                                 section_centroids, vertex_edges)
 from curveskel_addon.core.quality import InsideTest
-from tests.meshes import BAR, PLATE, box_bar, capsule, plate_with_holes
+from tests.meshes import (BAR, PLATE, box_bar, capsule, plate_with_holes, t_beam,
+                          t_beam_centroid_y)
 
 
 @pytest.fixture(scope="module")
@@ -135,6 +137,79 @@ def test_a_section_beyond_reach_and_fade_moves_nothing_and_the_step_fades_betwee
     assert moved(1.01 * ext / REACH) == pytest.approx(STEP * 0.1, abs=1e-9)
     mid = moved(ext / (REACH + FADE / 2))
     assert 0.2 * STEP * 0.1 < mid < 0.8 * STEP * 0.1
+
+
+@pytest.fixture(scope="module")
+def beam():
+    return t_beam()
+
+
+def _web_chain(n=13, y=-0.9, r=0.2):
+    """A straight chain along the T-beam's web, off its section's centroid, radius ``r``: the
+    section reaches 1.25 from a joint, 6.3 radii, beyond REACH + FADE."""
+    x = np.linspace(-3.6, 3.6, n)
+    J = np.column_stack([x, np.full(n, y), np.zeros(n), np.full(n, r)])
+    return J, np.stack([np.arange(n - 1), np.arange(1, n)], 1)
+
+
+def test_a_chain_along_a_t_beam_moves_to_its_sections_centroid(beam):
+    """rocker-arm's lever made plain: a T-section beam whose section reaches 6.3 radii from
+    the chain. Every chain joint between two chain joints moves to the T's area centroid
+    (analytic y = -0.372), not only those whose section lies within REACH radii; the joints
+    next to the tips, whose run of sections cannot be compared on both sides, stay nearer
+    where they were. Fails with the rule off (nothing moves)."""
+    V, F = beam
+    J, bones = _web_chain()
+    c = t_beam_centroid_y()
+    X, moved = polish_chains(V, F, J, bones, InsideTest(V, F), rounds=8)
+    assert moved == 9                        # the 11 chain joints but the two next to the tips
+    np.testing.assert_allclose(X[4:9, 1], c, atol=0.01)
+    np.testing.assert_allclose(X[:, 2], 0.0, atol=1e-9)
+    np.testing.assert_allclose(X[:, 0], J[:, 0], atol=0.1)    # slid along by the smoothing
+    # the default two rounds go three quarters of the way in the middle
+    X, _ = polish_chains(V, F, J, bones, InsideTest(V, F))
+    np.testing.assert_allclose(X[4:9, 1], -0.9 + 0.75 * (c + 0.9), atol=0.01)
+
+
+def test_a_section_holding_another_part_of_the_skeleton_moves_nothing(beam):
+    """The same chain beside a second one along the flange: every plane of the first cuts the
+    second inside the same loop (the section is not the first chain's own), so beyond REACH
+    nothing moves; nor does the second (its sections reach 9 of its radii)."""
+    V, F = beam
+    J, bones = _web_chain()
+    J2, _ = _web_chain(y=0.1, r=0.15)
+    X, moved = polish_chains(V, F, np.vstack([J, J2]), np.vstack([bones, bones + len(J)]),
+                             InsideTest(V, F))
+    assert moved == 0
+    np.testing.assert_allclose(X, np.vstack([J, J2])[:, :3], atol=1e-12)
+
+
+def test_the_own_rule_fades_out_where_a_section_outgrows_its_neighbours(beam):
+    """A limb's root: its plane takes in the body and its section reaches well beyond its
+    neighbours' (spot's hind leg, 1.6x). The rule's weight is full up to OWN_RATIO times the
+    larger neighbour's extent and fades to none over FADE beyond (a continuous decision),
+    with everything else equal (sections given, a chain of five on the beam)."""
+    V, F = beam
+    J, bones = _web_chain(n=5)
+    X = J[:, :3]
+    moving = np.array([1, 2, 3, 0, 4])
+    tip = np.array([False, False, False, True, True])
+    T = np.tile([1.0, 0.0, 0.0], (5, 1))
+    C = X[moving] + [0.0, 0.5, 0.0]
+    area = np.full(5, 0.54)
+    w = np.zeros(5)
+
+    def weight(ratio):
+        extent = np.array([1.0, ratio, 1.0, 1.0, 1.0])
+        er = extent / 0.5
+        return cross_section._own_weight(V, F, X, T, moving, tip, C, extent, area, er, w,
+                                         bones, None, None)[1]
+
+    r0 = cross_section.OWN_RATIO
+    assert weight(1.0) == 1.0
+    assert weight(r0) == 1.0
+    assert 0.0 < weight(r0 + FADE / 2) < 1.0
+    assert weight(r0 + FADE) == 0.0
 
 
 def test_two_curves_in_one_part_share_their_sections_and_two_parts_do_not(bar, plate):
