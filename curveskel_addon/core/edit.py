@@ -796,7 +796,8 @@ def zip_parallel_chains(joints, bones, frac, *, max_rounds=20, loops=False, sect
         if sections is not None and cands:
             on_cycle = cycle_bones(len(joints), bones)
             ask = [n for n, (P, Pb, Q, Qb, _) in enumerate(cands)
-                   if on_cycle[Pb].all() and on_cycle[Qb].all()]
+                   if _runs_on_cycles(joints, P, Pb, on_cycle)
+                   and _runs_on_cycles(joints, Q, Qb, on_cycle)]
             if ask:
                 got = sections([(joints[cands[n][0]], joints[cands[n][2]]) for n in ask]
                                + [(joints[cands[n][2]], joints[cands[n][0]]) for n in ask])
@@ -823,6 +824,17 @@ def zip_parallel_chains(joints, bones, frac, *, max_rounds=20, loops=False, sect
         joints, bones, m = out
         bone_map = m[bone_map]
     return joints, bones, bone_map
+
+
+def _runs_on_cycles(joints, P, Pb, on_cycle):
+    """Whether every bone of the path P (joints, bones Pb) lies on a cycle, but for bones
+    within the ball of its first joint: a short link between two junctions of one part is a
+    bridge when the loops on its two sides meet only through it, yet they may run through one
+    web (fertility: a bone 5.4 long inside its junction's radius 11.9 joined the two strands
+    of its middle web, which the zip then took as one)."""
+    X = joints[P, :3]
+    inside = np.linalg.norm(X - X[0], axis=1) < joints[P[0], 3]
+    return bool((on_cycle[Pb] | (inside[:-1] & inside[1:])).all())
 
 
 def cycle_bones(n_joints, bones):

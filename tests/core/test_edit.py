@@ -421,6 +421,31 @@ def test_zip_by_shared_sections_joins_two_loops_sides_in_one_web():
     assert np.array_equal(B3, B)
 
 
+def test_zip_by_shared_sections_joins_loops_met_by_a_short_bridge():
+    """As above, but the right loop hangs from a second junction 0.5 below the first, joined
+    to it by one bone (fertility's middle web): that bone is a bridge, yet it lies inside the
+    first junction's ball (radius 1), so the two loops' sides still pair and become one strand
+    up the web (they did not before: the pair was judged by distance alone)."""
+    h = 0.7
+    pts = [(0, 0),
+           (-h, 1), (-h, 2), (-3, 3), (-5, 0), (-3, -3),      # left loop, from (0, 0)
+           (0, -0.5),                                        # the second junction
+           (h, 1), (h, 2), (3, 3), (5, 0), (3, -3)]           # right loop, from (0, -0.5)
+    B = np.array([(0, 1), (1, 2), (2, 3), (3, 4), (4, 5), (5, 0), (0, 6),
+                  (6, 7), (7, 8), (8, 9), (9, 10), (10, 11), (11, 6)])
+    J = _joints(pts, 1.0)
+    assert not cycle_bones(len(J), B)[6]                 # the link (0, 6) is a bridge
+    J2, B2, _ = zip_parallel_chains(J, B, 0.5, loops=True, sections=_web)
+    assert _cycles(len(J2), B2) == 2
+    deg = np.bincount(B2.ravel(), minlength=len(J2))
+    top = J2[deg >= 3, :3]
+    # one fork at the web's top, where the two sides part (x = 0, y = 2)
+    assert np.any(np.all(np.abs(top - [0.0, 2.0, 0.0]) < 1e-9, axis=1)), top
+    # the strand up the web: no joint of the result left on either side's old line
+    used = np.unique(B2)
+    assert not np.any(np.isclose(np.abs(J2[used, 0]), h) & (J2[used, 1] > 0.5))
+
+
 def test_zip_by_shared_sections_leaves_limbs_alone():
     # two limbs (no cycle) 1.4 apart whose sections a test would call shared (a chest): the
     # section rule applies to loops' sides only, the distance rule leaves them apart
