@@ -64,6 +64,10 @@ EDIT_CONSTANTS = {
     # merge: two paths leaving a junction with every joint within this many of its radius of
     # the other path are one part's curve twice (zip_parallel_chains)
     "zip_radius_fraction": 0.5,
+    # merge, after the polish: a bone shorter than this fraction of its larger end radius is
+    # no bone a rigger can grab (the containment splits and two junctions drawn together
+    # leave them: botijo's 0.001 r, penguin's 0.016 r); its ends become one joint
+    "short_bone_fraction": 0.1,
 }
 
 

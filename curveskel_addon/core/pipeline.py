@@ -34,8 +34,8 @@ from scipy.spatial import cKDTree
 
 from .centreline import SURFACE_RADII_ROUNDS, centre_stage, fit_radii_surface, smooth_chains
 from .cross_section import polish_chains, shared_sections_many
-from .edit import (EDIT_CONSTANTS, apply_edit, contain_stage, edit_stage, outside_worse,
-                   point_polyline_distance, put_back, zip_parallel_chains)
+from .edit import (EDIT_CONSTANTS, apply_edit, collapse_short_bones, contain_stage, edit_stage,
+                   outside_worse, point_polyline_distance, put_back, zip_parallel_chains)
 from .errors import CurveSkelError
 from .flaps import lay_flaps
 from .junctions import onto_trunks
@@ -346,6 +346,7 @@ class SkeletonRun:
         bone further out of the mesh, put back,
         radii refitted to the surface. Returns the number of chain joints that moved."""
         st = self.state
+        C_SHORT = EDIT_CONSTANTS["short_bone_fraction"]
         if SHEET_ZIP:
             apply_edit(st, *zip_parallel_chains(st.joints, st.bones,
                                                 EDIT_CONSTANTS["zip_radius_fraction"],
@@ -379,6 +380,12 @@ class SkeletonRun:
         if guards:
             put_back(st.joints, st.bones, before,
                      lambda X: np.unique(np.concatenate([g(X) for g in guards])))
+        if C_SHORT > 0:
+            r = np.maximum(np.abs(st.joints[st.bones, 3]).max(axis=1), 0.0)
+            J2, B2, bone_map = collapse_short_bones(st.joints, st.bones, C_SHORT * r)
+            if len(J2) != len(st.joints):
+                st.joints, st.bones = J2, B2
+                st.apply_bone_map(bone_map)       # the radii are refitted next
         if SURFACE_RADII:
             # one reweighting is start enough for the silhouette's fit (the five of the
             # nearest-bone fit alone: the same mean recon, 0.73-0.75x over 1-5)
