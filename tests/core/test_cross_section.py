@@ -228,3 +228,18 @@ def test_two_curves_in_one_part_share_their_sections_and_two_parts_do_not(bar, p
     web_b = web_a + [2.0, 0.0, 0.0]
     assert not shared_sections(V, F, web_a, web_b, 4.0).any()
     assert shared_sections(V, F, web_a, web_a + [0.3, 0.0, 0.1], 4.0)[1:-1].all()
+
+
+def test_a_loop_within_reach_of_the_point_is_found_from_the_crossing_too(plate):
+    """The plate's web between its left and middle holes is 1.0 wide (x = -1.5 to -0.5) and 0.4
+    deep. A line up its middle (x = -1.0) and one near its right side (x = -0.55): the loop round
+    the first reaches 0.54 from it, 0.97 from the second's crossing. Within a reach of 0.6 the
+    first shares its sections with the second (the crossing is looked for within the reach
+    plus its distance; with the reach alone it was not found and nothing was shared); the
+    second, whose own loop is beyond 0.6, does not."""
+    V, F = plate
+    y = np.linspace(-0.2, 0.2, 5)
+    mid = np.column_stack([np.full(5, -1.0), y, np.zeros(5)])
+    side = np.column_stack([np.full(5, -0.55), y, np.zeros(5)])
+    assert shared_sections(V, F, mid, side, 0.6).all()
+    assert not shared_sections(V, F, side, mid, 0.6).any()
