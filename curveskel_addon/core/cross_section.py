@@ -420,8 +420,16 @@ def polish_chains(V, F, joints, bones, inside, *, rounds=ROUNDS, step=STEP, reac
         T = np.divide(T, nt, out=np.zeros_like(T), where=nt > 0)
         r = J[moving, 3]
         rr = reach + np.where(tip, TIP_REACH, 0.0)
-        C, extent, area = section_loops(V, F, X[moving], T, np.maximum(rr, OWN_REACH) * r,
-                                        face_of=face_of, vertex_edge=vertex_edge)
+        C, extent, area = section_loops(V, F, X[moving], T, (rr + FADE) * r, face_of=face_of,
+                                        vertex_edge=vertex_edge)
+        # the loops beyond that, for the own-section rule, looked for only where none was
+        # found (a loop winding round a point lies inside any larger one: the innermost loop
+        # within the small reach is the innermost within the large one)
+        far = np.flatnonzero(~tip & ~np.isfinite(extent))
+        if len(far) and OWN_REACH > REACH + FADE:
+            C[far], extent[far], area[far] = section_loops(
+                V, F, X[moving[far]], T[far], OWN_REACH * r[far], face_of=face_of,
+                vertex_edge=vertex_edge)
         # full step for a section within `reach` radii, none beyond `reach + FADE`: a loop
         # near the limit (a limb's root) does not switch a joint's move on and off
         er = extent / np.maximum(r, 1e-300)
