@@ -459,13 +459,14 @@ def _own_weight(V, F, X, T, moving, tip, C, extent, area, er, w, bones, face_of,
     sections on both sides are the comparison."""
     from .centreline import chain_neighbours
     out = np.zeros(len(moving))
-    ex = np.full(len(X), np.nan)
+    ex = np.full(len(X) + 1, np.nan)                 # the last slot: no neighbour
     ex[moving[~tip]] = extent[~tip]
-    _, na, nb = chain_neighbours(bones, len(X))      # moving starts with these chain joints
-    ratio = np.full(len(moving), np.inf)
+    chain, na, nb = chain_neighbours(bones, len(X))
+    nbr = np.full((len(X), 2), len(X))
+    nbr[chain, 0], nbr[chain, 1] = na, nb
     with np.errstate(divide="ignore", invalid="ignore"):
-        r = np.maximum(extent[:len(na)] / ex[na], extent[:len(na)] / ex[nb])
-    ratio[:len(na)] = np.where(np.isfinite(r), r, np.inf)
+        ratio = np.max(extent[:, None] / ex[nbr[moving]], axis=1)
+    ratio[tip | ~np.isfinite(ratio)] = np.inf
     wo = (np.clip(OWN_REACH - er, 0.0, FADE) / FADE
           * np.clip(OWN_RATIO + FADE - ratio, 0.0, FADE) / FADE)
     ask = np.flatnonzero((wo > w) & np.isfinite(extent) & (area > 0))

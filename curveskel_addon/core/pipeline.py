@@ -10,9 +10,11 @@
       -> radii       chains smoothed, radii fitted to the surface with the curve fixed
                      (:func:`.centreline.fit_radii_surface`)
       -> contain     tips trimmed, bones that leave the mesh split at medial points (:mod:`.edit`)
-      -> polish      a flap's chain (an ear) laid into the flap's middle (:mod:`.flaps`), other
-                     chain joints towards the centroids of the mesh's cross-sections through
-                     them, radii refitted (:mod:`.cross_section`)
+      -> polish      two loops' sides through one web zipped (:mod:`.edit`), a flap's chain
+                     (an ear) laid into the flap's middle (:mod:`.flaps`), other chain joints
+                     towards the centroids of the mesh's cross-sections through them
+                     (:mod:`.cross_section`), bones shorter than a tenth of their radius
+                     merged, radii refitted
       -> Skeleton    every input vertex mapped; the reported E is that of the returned skeleton
 
 Why this order (issue 10): the *shape* of the curve comes from the mesh's structure (Reeb
@@ -343,10 +345,11 @@ class SkeletonRun:
         chain joints and tips towards their cross-sections' centroids
         (:func:`.cross_section.polish_chains`), junctions onto their trunks
         (:func:`.junctions.onto_trunks`), joints moved into a new fold or crossing, or taking a
-        bone further out of the mesh, put back,
-        radii refitted to the surface. Returns the number of chain joints that moved."""
+        bone further out of the mesh, put back, bones shorter than ``short_bone_fraction`` of
+        their radius merged, radii refitted to the surface. Returns the number of chain joints
+        that moved."""
         st = self.state
-        C_SHORT = EDIT_CONSTANTS["short_bone_fraction"]
+        short = EDIT_CONSTANTS["short_bone_fraction"]
         if SHEET_ZIP:
             apply_edit(st, *zip_parallel_chains(st.joints, st.bones,
                                                 EDIT_CONSTANTS["zip_radius_fraction"],
@@ -380,9 +383,9 @@ class SkeletonRun:
         if guards:
             put_back(st.joints, st.bones, before,
                      lambda X: np.unique(np.concatenate([g(X) for g in guards])))
-        if C_SHORT > 0:
-            r = np.maximum(np.abs(st.joints[st.bones, 3]).max(axis=1), 0.0)
-            J2, B2, bone_map = collapse_short_bones(st.joints, st.bones, C_SHORT * r)
+        if short > 0:
+            r = np.abs(st.joints[st.bones, 3]).max(axis=1)
+            J2, B2, bone_map = collapse_short_bones(st.joints, st.bones, short * r)
             if len(J2) != len(st.joints):
                 st.joints, st.bones = J2, B2
                 st.apply_bone_map(bone_map)       # the radii are refitted next
