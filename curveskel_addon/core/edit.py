@@ -34,7 +34,8 @@ from .centreline import joint_adjacency
 from .quality import _point_segment_distance, skeleton_topology
 
 __all__ = ["chains", "leaf_chains", "merge_chains", "zip_parallel_chains", "cycle_bones",
-           "collapse_short_bones", "prune_leaves", "compact", "chain_turns", "remove_sharp_turns",
+           "collapse_short_bones", "merge_short_bones", "prune_leaves", "compact", "chain_turns",
+           "remove_sharp_turns",
            "edit_stage", "apply_edit", "point_polyline_distance", "contain_stage",
            "outside_worse", "put_back", "EDIT_CONSTANTS"]
 
@@ -284,6 +285,37 @@ def collapse_short_bones(joints, bones, tol):
             bone_map[b] = 0
     j2, b2, _ = compact(joints, new_bones, bone_map)
     return j2, b2, bone_map
+
+
+def merge_short_bones(joints, bones, fraction):
+    """Contract every bone shorter than ``fraction`` of its larger end radius
+    (:func:`collapse_short_bones`), but keep the longest bone of a part whose bones are all
+    that short (a small blob's skeleton stays a bone, not a lone joint).
+
+    Examples
+    --------
+    >>> J = np.array([[0, 0, 0, 1.0], [0.05, 0, 0, 1], [2, 0, 0, 1], [9, 0, 0, 1], [9.06, 0, 0, 1]])
+    >>> J2, B2, m = merge_short_bones(J, np.array([[0, 1], [1, 2], [3, 4]]), 0.1)
+    >>> len(J2), B2.tolist()
+    (4, [[0, 1], [2, 3]])
+    """
+    joints = np.asarray(joints, np.float64)
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    if not len(bones):
+        return joints, bones, np.arange(0)
+    L = np.linalg.norm(joints[bones[:, 0], :3] - joints[bones[:, 1], :3], axis=1)
+    tol = fraction * np.abs(joints[bones, 3]).max(axis=1)
+    short = L < tol
+    if not short.any():
+        return joints, bones, np.arange(len(bones))
+    G = sp.coo_matrix((np.ones(len(bones)), (bones[:, 0], bones[:, 1])),
+                      shape=(len(joints), len(joints)))
+    part = connected_components(G, directed=False)[1][bones[:, 0]]
+    all_short = np.bincount(part, weights=~short) == 0
+    for p in np.flatnonzero(all_short):
+        mine = np.flatnonzero(part == p)
+        tol[mine[np.argmax(L[mine])]] = 0.0
+    return collapse_short_bones(joints, bones, tol)
 
 
 def prune_leaves(joints, bones, factor, *, max_rounds=10):

@@ -36,7 +36,7 @@ from scipy.spatial import cKDTree
 
 from .centreline import SURFACE_RADII_ROUNDS, centre_stage, fit_radii_surface, smooth_chains
 from .cross_section import polish_chains, shared_sections_many
-from .edit import (EDIT_CONSTANTS, apply_edit, collapse_short_bones, contain_stage, edit_stage,
+from .edit import (EDIT_CONSTANTS, apply_edit, contain_stage, edit_stage, merge_short_bones,
                    outside_worse, point_polyline_distance, put_back, zip_parallel_chains)
 from .errors import CurveSkelError
 from .flaps import lay_flaps
@@ -384,8 +384,7 @@ class SkeletonRun:
             put_back(st.joints, st.bones, before,
                      lambda X: np.unique(np.concatenate([g(X) for g in guards])))
         if short > 0:
-            r = np.abs(st.joints[st.bones, 3]).max(axis=1)
-            J2, B2, bone_map = collapse_short_bones(st.joints, st.bones, short * r)
+            J2, B2, bone_map = merge_short_bones(st.joints, st.bones, short)
             if len(J2) != len(st.joints):
                 st.joints, st.bones = J2, B2
                 st.apply_bone_map(bone_map)       # the radii are refitted next

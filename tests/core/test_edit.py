@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from curveskel_addon.core.edit import (chain_turns, chains, collapse_short_bones, cycle_bones,
-                                       merge_chains, outside_worse, prune_leaves, put_back,
-                                       remove_sharp_turns, zip_parallel_chains)
+                                       merge_chains, merge_short_bones, outside_worse, prune_leaves,
+                                       put_back, remove_sharp_turns, zip_parallel_chains)
 from curveskel_addon.core.quality import crossing_pairs
 
 
@@ -461,3 +461,28 @@ def test_cycle_bones_are_the_bones_that_are_not_bridges():
     tail = np.vstack([B, [(4, 11)]])
     got = cycle_bones(12, tail)
     assert got[:-1].all() and not got[-1]
+
+
+def test_merge_short_bones_contracts_bones_under_a_tenth_of_their_radius():
+    """A chain of radius-1 joints with a 0.05 bone in the middle: its ends become one joint (at
+    their midpoint, both of degree 2); a 0.15 bone stays."""
+    J = np.array([[0, 0, 0, 1.0], [1, 0, 0, 1], [1.05, 0, 0, 1], [2, 0, 0, 1], [2.15, 0, 0, 1]])
+    B = np.array([[0, 1], [1, 2], [2, 3], [3, 4]])
+    J2, B2, m = merge_short_bones(J, B, 0.1)
+    assert len(J2) == 4 and len(B2) == 3
+    assert np.isclose(J2[:, 0], 1.025).sum() == 1
+    L = np.linalg.norm(J2[B2[:, 0], :3] - J2[B2[:, 1], :3], axis=1)
+    assert L.min() >= 0.15 - 1e-12
+
+
+def test_merge_short_bones_leaves_a_small_part_one_bone():
+    """A part whose two bones are both shorter than a tenth of the radius keeps its longer bone
+    (collapse_short_bones alone would leave a lone joint); another part is merged as usual."""
+    J = np.array([[0, 0, 0, 1.0], [0.05, 0, 0, 1], [0.13, 0, 0, 1],
+                  [5, 0, 0, 1], [6, 0, 0, 1], [6.02, 0, 0, 1], [7, 0, 0, 1]])
+    B = np.array([[0, 1], [1, 2], [3, 4], [4, 5], [5, 6]])
+    J2, B2, _ = merge_short_bones(J, B, 0.1)
+    assert len(B2) == 3 and len(J2) == 5
+    used = np.unique(B2)
+    assert len(used) == len(J2)                       # no joint without a bone
+    assert np.allclose(sorted(np.linalg.norm(J2[B2[:, 0], :3] - J2[B2[:, 1], :3], axis=1))[0], 0.08)
