@@ -14,10 +14,12 @@ Operators
   within ``tol`` (per joint, e.g. a fraction of its radius) of the straight bone that would
   replace it is removed. Tip bones shorter than the tolerance are merged the same way.
 * :func:`collapse_short_bones` (merge) - a bone shorter than ``tol`` is contracted into one
-  joint (at its junction end if it has one).
+  joint (at its junction end if it has one); :func:`merge_short_bones` - those shorter than a
+  fraction of their radius, a part keeping at least one bone (the polish's last edit).
 * :func:`zip_parallel_chains` (merge) - two paths leaving a junction side by side (each
-  joint within half its radius of the other path, beyond the junction's ball) become their
-  mean chain up to where they part; never where that would change the number of cycles.
+  joint within half its radius of the other path, beyond the junction's ball; in the polish,
+  loops' sides also where they share cross-sections) become their mean chain up to where they
+  part; never where that would change the number of cycles.
 * :func:`prune_leaves` (remove) - a leaf branch (leaf to junction) shorter than ``factor``
   times the junction's radius lies inside the junction's ball: a bump, not a part.
 * :func:`.centreline.split_long_bones` (split) - bones longer than a length split in equal
