@@ -192,22 +192,33 @@ def _smooth_dense(rows, cols, vals, n, nb, graph, iterations, max_influences, pr
     """The diffusion of :func:`_smooth` on a dense (n, bones) float32 array: on small and
     middle-sized meshes a sparse-times-dense product per step costs 2-4x less than the sparse
     product (whose per-step bookkeeping dominates there). Weights below ``prune`` are dropped
-    after the last step (not after each), the 4 largest kept as in :func:`_largest`."""
+    after the last step (not after each), the 4 largest kept as in :func:`_largest`.
+
+    The 4 largest are picked on the transposed (bones, n) array: each pick's maximum and its
+    first column are reductions along the vertices (contiguous), where ``argmax`` along a row
+    of a few dozen bones costs 5-10x more on a small mesh. The weights below ``prune`` are
+    smaller than any kept one, so they are dropped as they come up instead of in a pass
+    of their own (the same result).
+    """
     S = graph.averaging(np.float32)
     Wd = np.bincount(rows * nb + cols, weights=vals, minlength=n * nb).astype(np.float32)
     Wd = Wd.reshape(n, nb)
     for _ in range(int(iterations)):
         Wd = S @ Wd
-    Wd[Wd < prune] = 0.0
     out_i = np.full((n, max_influences), -1, np.int64)
     out_w = np.zeros((n, max_influences))
-    rank = np.arange(n)
+    WT = np.ascontiguousarray(Wd.T)
+    rank = np.arange(nb, 0, -1, dtype=np.int16 if nb < 2**15 else np.int64)[:, None]
+    at = np.arange(n)
+    floor = max(float(prune), 0.0)
     for j in range(min(max_influences, nb)):
-        best = np.argmax(Wd, axis=1)             # the first of equal values: the lower column
-        v = Wd[rank, best]
-        out_i[:, j] = np.where(v > 0, best, -1)
-        out_w[:, j] = v                          # 0 where the row has no weight left
-        Wd[rank, best] = 0.0
+        v = WT.max(axis=0)
+        best = nb - (WT == v) * rank                 # the first of equal values: the lower column
+        best = best.min(axis=0)
+        keep = v >= floor if floor > 0 else v > 0
+        out_i[:, j] = np.where(keep, best, -1)
+        out_w[:, j] = np.where(keep, v, 0.0)         # 0 where the row has no weight left
+        WT[best, at] = 0.0
     total = out_w.sum(axis=1, keepdims=True)
     out_w = np.divide(out_w, total, out=np.zeros_like(out_w), where=total > 0)
     return out_i, out_w
@@ -645,18 +656,27 @@ def _keep_family(index, weight, blend_parent):
     if m < 2:
         out_i[live, 0], out_w[live, 0] = main[live], 1.0
         return out_i, out_w
-    rest = index[:, 1:]
     bp = np.append(blend_parent, -2)                     # bp[-1]: an unused column has none
     mp = np.where(live, bp[main], -2)
-    up = (rest == mp[:, None]) & (rest >= 0)
-    down = (bp[rest] == main[:, None]) & (rest >= 0) & live[:, None]
-    rows = np.arange(n)
-    w_up = np.where(up, weight[:, 1:], 0.0).max(axis=1)  # at most one parent per row
-    first_down = np.argmax(down, axis=1)
-    has_down = down[rows, first_down]
-    w_down = np.where(has_down, weight[rows, 1 + first_down], 0.0)
+    # column by column (m - 1 = 3 at most in a bind): the per-row max / argmax over 3
+    # columns cost more than the arithmetic on a small mesh. up: the main bone's blend parent
+    # (at most one per row); down: the first child blending with it (weights decrease, so the
+    # heaviest); -1 for none
+    w_up = np.zeros(n)
+    i_up = np.full(n, -1, np.int64)
+    w_down = np.zeros(n)
+    i_down = np.full(n, -1, np.int64)
+    for c in range(m - 1, 0, -1):                        # the first match wins: last column first
+        col, w = index[:, c], weight[:, c]
+        ok = col >= 0
+        up = ok & (col == mp)
+        down = ok & (bp[col] == main) & live
+        w_up = np.where(up, w, w_up)
+        i_up = np.where(up, col, i_up)
+        w_down = np.where(down, w, w_down)
+        i_down = np.where(down, col, i_down)
     take_up = w_up >= w_down                              # w_up 0 (no parent): the child, if any
-    other = np.where(take_up, rest[rows, np.argmax(up, axis=1)], rest[rows, first_down])
+    other = np.where(take_up, i_up, i_down)
     w_other = np.where(take_up, w_up, w_down)
     other = np.where(w_other > 0, other, -1)
     w_main = np.where(live, weight[:, 0], 0.0)
