@@ -161,8 +161,7 @@ def closest_bone(points, joints, bones) -> np.ndarray:
     PcT = np.ascontiguousarray(Pc.T, f32)
     Am, Dm = (-2.0 * A).astype(f32), D.astype(f32)
     AD, AA, inv, DD = (a.astype(f32)[:, None] for a in (AD, AA, inv, DD))
-    # the first bone at the minimum: the largest of (nb - k) over the bones k at it
-    rank = np.arange(nb, 0, -1, dtype=np.int32 if nb < 2**31 else np.int64)[:, None]
+    ar = np.arange(nb, dtype=np.int32 if nb < 2**31 else np.int64)[:, None]
     rows, cands, counts = [], [], []
     step = max(1, _CHUNK // nb)
     for s in range(0, n, step):
@@ -177,17 +176,16 @@ def closest_bone(points, joints, bones) -> np.ndarray:
         num -= t * DD
         num *= t
         d2 -= num
-        least = d2.min(axis=0)
-        bone[s:s + d2.shape[1]] = nb - ((d2 == least) * rank).max(axis=0)
-        # points where another bone is within tol of the best: their candidates (the best
-        # included) compared exactly
-        near = d2 <= least + tol
-        many = np.flatnonzero(np.add.reduce(near, axis=0, dtype=np.int32) > 1)
+        # the bones within tol of the least: one (the f32 argmin, kept) or near-ties, whose
+        # candidates (the f32 best included) are compared exactly below
+        near = d2 <= d2.min(axis=0) + tol
+        count = np.add.reduce(near, axis=0, dtype=ar.dtype)
+        bone[s:s + d2.shape[1]] = np.add.reduce(near * ar, axis=0)     # where count is 1
+        many = np.flatnonzero(count > 1)
         if len(many):
-            near = near[:, many].T
             rows.append(s + many)
-            cands.append(np.nonzero(near)[1])
-            counts.append(np.count_nonzero(near, axis=1))
+            cands.append(np.nonzero(near[:, many].T)[1])
+            counts.append(count[many])
     if rows:
         rows = np.concatenate(rows)
         indptr = np.r_[0, np.cumsum(np.concatenate(counts))]

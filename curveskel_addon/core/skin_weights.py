@@ -508,6 +508,23 @@ def _closest_bones(P, H, T, ids):
     return closest_bone(P, X, segs)
 
 
+def _kept_patches(label, comp, R):
+    """Vertices in the patch their bone keeps: each bone's largest connected patch (``comp``:
+    the patch of each vertex, one bone per patch); of equally large ones, that of the bone's
+    lowest vertex (the first in a stable sort by bone, then by decreasing size)."""
+    n = len(label)
+    size = np.bincount(comp)
+    sz = size[comp]
+    top = np.zeros(R, np.int64)
+    np.maximum.at(top, label, sz)
+    cand = np.flatnonzero(sz == top[label])
+    first = np.full(R, n, np.int64)
+    np.minimum.at(first, label[cand], cand)
+    keep = np.zeros(len(size), bool)
+    keep[comp[first[first < n]]] = True
+    return keep[comp]
+
+
 def _labels(P, graph, H, T, deform):
     """surface_labels on a built graph: (label, s, dist, closest)."""
     ids = np.flatnonzero(deform)
@@ -517,13 +534,7 @@ def _labels(P, graph, H, T, deform):
     label = closest = ids[_closest_bones(P, H, T, ids)]
     if n and len(graph.edges):
         same = label[graph.rows] == label[graph.indices]
-        comp = graph.components(same)
-        size = np.bincount(comp)
-        order = np.lexsort((-size[comp], label))
-        first = np.r_[True, label[order][1:] != label[order][:-1]]
-        keep_comp = np.zeros(len(size), bool)
-        keep_comp[comp[order[first]]] = True
-        kept = keep_comp[comp]
+        kept = _kept_patches(label, graph.components(same), len(H))
         if not kept.all():
             near = graph.nearest(P, kept)
             move = (~kept) & (near >= 0)
@@ -624,14 +635,24 @@ def bone_weights(V, F, heads, tails, parent, deform=None, *, blend: float = 0.25
     k = 0
     if smooth > 0 and len(E) and n:
         dE = P[E[:, 0]] - P[E[:, 1]]
-        h = float(np.mean(np.sqrt(np.einsum("ij,ij->i", dE, dE))))      # mean edge length
-        k = smoothing_iterations(smooth * float(np.median(dist)), h, cap=SMOOTH_CAP)
+        h = float(np.sqrt(np.einsum("ij,ij->i", dE, dE)).sum()) / len(E)    # mean edge length
+        k = smoothing_iterations(smooth * _median(dist), h, cap=SMOOTH_CAP)
     index, weight = _smooth(index, weight, graph, k, max_influences, 1e-4)
     # keep the main bone's family only: itself and, across a joint that blends (a chain joint;
     # any attached parent when junctions blend too), its parent or one child
     blends = (hm == BLEND_SYMMETRIC) | ((hm == BLEND_HUB) & (junction_blend > 0))
     index, weight = _keep_family(index, weight, np.where(blends, par, -2))
     return index, weight, {"relabelled": int(np.sum(label != closest)), "smooth_iterations": int(k)}
+
+
+def _median(x) -> float:
+    """``np.median`` of a 1-D float array without NaN (the mean of the two middle values when
+    the length is even, as numpy computes it), without its generic machinery."""
+    m = len(x) // 2
+    if len(x) % 2:
+        return float(np.partition(x, m)[m])
+    part = np.partition(x, (m - 1, m))
+    return float((part[m - 1] + part[m]) / 2)
 
 
 def _keep_family(index, weight, blend_parent):

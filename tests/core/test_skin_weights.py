@@ -455,3 +455,33 @@ def test_dense_top4_equals_the_argmax_reference(seed):
         want = _top4_reference(Wd, 4, prune)
         assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
     assert (want[0][:, 3] >= 0).any() and (want[0][:, 0] < 0).any()
+
+
+def test_median_is_numpys():
+    from curveskel_addon.core.skin_weights import _median
+
+    rng = np.random.default_rng(5)
+    for n in (1, 2, 3, 10, 11, 451, 2930):
+        x = rng.random(n) * 10.0 ** rng.integers(-3, 3)
+        for y in (x, np.round(x, 1)):                                   # ties too
+            assert _median(y) == float(np.median(y))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_kept_patches_equal_the_sorted_reference(seed):
+    """Each bone keeps its largest patch, of equal ones that of its lowest vertex: the same as
+    the first patch per bone after a stable sort by bone, then by decreasing size (ties made
+    likely: patches of 1-3 vertices)."""
+    from curveskel_addon.core.skin_weights import _kept_patches
+
+    rng = np.random.default_rng(seed)
+    R, P = 7, 60
+    patch_bone = rng.integers(0, R, P)
+    comp = rng.permutation(np.repeat(np.arange(P), rng.integers(1, 4, P)))
+    label = patch_bone[comp]
+    size = np.bincount(comp)
+    order = np.lexsort((-size[comp], label))
+    first = np.r_[True, label[order][1:] != label[order][:-1]]
+    keep = np.zeros(len(size), bool)
+    keep[comp[order[first]]] = True
+    assert np.array_equal(_kept_patches(label, comp, R), keep[comp])
