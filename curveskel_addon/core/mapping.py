@@ -134,9 +134,12 @@ def closest_bone(points, joints, bones) -> np.ndarray:
     equally close bones), without its t and distance (a bind needs only the bone).
 
     The same float32 screen as :func:`_all_bones` (near-ties within 1e-5 of the squared extent
-    compared exactly), laid out bones x points: every reduction over the bones then runs
-    along the points (contiguous), where numpy's per-row reductions over a few dozen bones
-    (``argmin``/``min`` along axis 1) cost 10-25x more than the arithmetic on a small mesh.
+    compared exactly, with the arithmetic of :func:`closest_on_bones`), laid out bones x
+    points: every reduction over the bones then runs along the points (contiguous), where
+    numpy's per-row reductions over a few dozen bones (``argmin``/``min`` along axis 1) cost
+    10-25x more than the arithmetic on a small mesh. A point with one bone within the
+    tolerance takes it (the float32 argmin); the near-ties' pairs come grouped by point from
+    the screen, so they are compared without building candidate lists.
     """
     P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     X = np.asarray(joints, dtype=np.float64)[:, :3]
@@ -162,7 +165,7 @@ def closest_bone(points, joints, bones) -> np.ndarray:
     Am, Dm = (-2.0 * A).astype(f32), D.astype(f32)
     AD, AA, inv, DD = (a.astype(f32)[:, None] for a in (AD, AA, inv, DD))
     ar = np.arange(nb, dtype=np.int32 if nb < 2**31 else np.int64)[:, None]
-    rows, cands, counts = [], [], []
+    rows, pairs, counts = [], [], []
     step = max(1, _CHUNK // nb)
     for s in range(0, n, step):
         p = PcT[:, s:s + step]
@@ -183,13 +186,21 @@ def closest_bone(points, joints, bones) -> np.ndarray:
         bone[s:s + d2.shape[1]] = np.add.reduce(near * ar, axis=0)     # where count is 1
         many = np.flatnonzero(count > 1)
         if len(many):
+            r, c = np.nonzero(near[:, many].T)        # grouped by point, bones increasing
             rows.append(s + many)
-            cands.append(np.nonzero(near[:, many].T)[1])
+            pairs.append((s + many[r], c))
             counts.append(count[many])
     if rows:
-        rows = np.concatenate(rows)
-        indptr = np.r_[0, np.cumsum(np.concatenate(counts))]
-        bone[rows] = closest_on_bones(P[rows], X, bones, candidates=(indptr, np.concatenate(cands)))[0]
+        # exactly as closest_on_bones compares a point's candidates (the same arithmetic), the
+        # pairs already grouped by point
+        pt, pb = (np.concatenate(x) for x in zip(*pairs))
+        c = np.concatenate(counts).astype(np.int64)
+        d2 = _on_bones(take_rows(P, pt), X, bones, pb)[1]
+        starts = np.cumsum(c) - c
+        least = np.minimum.reduceat(d2, starts)
+        first = np.minimum.reduceat(np.where(d2 == np.repeat(least, c), np.arange(len(pt)), len(pt)),
+                                    starts)
+        bone[np.concatenate(rows)] = pb[first]
     return bone
 
 

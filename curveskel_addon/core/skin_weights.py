@@ -50,7 +50,7 @@ DENSE_SMOOTH_WORK = 16_000_000
 
 def smoothstep(x):
     """3x^2 - 2x^3 on [0, 1] (clamped): 0 -> 0, 1 -> 1, zero slope at both ends."""
-    x = np.clip(x, 0.0, 1.0)
+    x = np.minimum(np.maximum(x, 0.0), 1.0)                 # np.clip
     return x * x * (3.0 - 2.0 * x)
 
 
@@ -173,11 +173,11 @@ def _smooth(index, weight, graph, iterations, max_influences, prune):
     n = len(index)
     nb = int(index.max()) + 1 if index.size else 0
     ok = index >= 0
-    rows = np.broadcast_to(np.arange(n)[:, None], index.shape)
+    rows = np.nonzero(ok)[0]                   # the row of each influence, in row-major order
     if iterations > 0 and graph is not None and nb and len(graph.indices) * nb <= DENSE_SMOOTH_WORK:
-        return _smooth_dense(rows[ok], index[ok], weight[ok], n, nb, graph, iterations,
+        return _smooth_dense(rows, index[ok], weight[ok], n, nb, graph, iterations,
                              max_influences, prune)
-    W = sp.csr_matrix((weight[ok], (rows[ok], index[ok])), shape=(n, max(nb, 1)))
+    W = sp.csr_matrix((weight[ok], (rows, index[ok])), shape=(n, max(nb, 1)))
     if iterations > 0 and graph is not None:
         S = graph.averaging()
         W.indices, W.indptr = W.indices.astype(S.indices.dtype), W.indptr.astype(S.indptr.dtype)
@@ -334,8 +334,9 @@ def bone_partners(heads, tails, parent, deform=None, *, tol=None):
     R = len(H)
     deform = np.ones(R, bool) if deform is None else np.asarray(deform, bool).ravel()
     if tol is None:
-        ext = np.ptp(np.concatenate([H, T]), axis=0) if R else np.zeros(3)
-        tol = max(1e-4 * float(np.linalg.norm(ext)), 1e-9)
+        HT = np.concatenate([H, T])
+        ext = HT.max(axis=0) - HT.min(axis=0) if R else np.zeros(3)         # np.ptp
+        tol = max(1e-4 * float(np.sqrt(ext.dot(ext))), 1e-9)                # np.linalg.norm
     head_mode = np.zeros(R, np.int64)
     tail_mode = np.zeros(R, np.int64)
     head_partner = np.full(R, -1, np.int64)
@@ -343,8 +344,10 @@ def bone_partners(heads, tails, parent, deform=None, *, tol=None):
     n_kids = np.bincount(par[(par >= 0) & deform], minlength=R) if R else np.zeros(0, np.int64)
     pp = np.maximum(par, 0)
     live = (par >= 0) & deform & deform[pp] if R else np.zeros(0, bool)
-    on_tail = live & (np.linalg.norm(H - T[pp], axis=1) <= tol)
-    on_head = live & ~on_tail & (np.linalg.norm(H - H[pp], axis=1) <= tol)
+    # np.linalg.norm(x, axis=1) is sqrt(add.reduce(x * x, axis=1)): the same, without its checks
+    dT, dH = H - T[pp], H - H[pp]
+    on_tail = live & (np.sqrt(np.add.reduce(dT * dT, axis=1)) <= tol)
+    on_head = live & ~on_tail & (np.sqrt(np.add.reduce(dH * dH, axis=1)) <= tol)
     attached = on_tail | on_head
     head_mode[on_head], head_partner[on_head] = BLEND_HUB, par[on_head]
     # a chain joint: the parent's only (deforming) child, on its tail; other children on the
@@ -364,7 +367,7 @@ def _closest_on_segments(P, A, B):
     D = B - A
     L2 = np.einsum("ij,ij->i", D, D)
     s = np.einsum("ij,ij->i", P - A, D) / np.where(L2 > 0, L2, 1.0)
-    s = np.clip(np.where(L2 > 0, s, 0.0), 0.0, 1.0)
+    s = np.minimum(np.maximum(np.where(L2 > 0, s, 0.0), 0.0), 1.0)       # np.clip
     Q = A + s[:, None] * D
     return s, np.einsum("ij,ij->i", P - Q, P - Q)
 
@@ -504,7 +507,7 @@ def _closest_bones(P, H, T, ids):
     if n == 0 or B == 1:
         return np.zeros(n, np.int64)
     X = np.concatenate([H[ids], T[ids]])              # sigma = t * head + (1 - t) * tail
-    segs = np.stack([np.arange(B), B + np.arange(B)], 1)
+    segs = np.arange(2 * B).reshape(2, B).T                       # bone k: (k, B + k)
     return closest_bone(P, X, segs)
 
 
@@ -677,7 +680,7 @@ def _keep_family(index, weight, blend_parent):
     if m < 2:
         out_i[live, 0], out_w[live, 0] = main[live], 1.0
         return out_i, out_w
-    bp = np.append(blend_parent, -2)                     # bp[-1]: an unused column has none
+    bp = np.concatenate((blend_parent, [-2]))            # bp[-1]: an unused column has none
     mp = np.where(live, bp[main], -2)
     # column by column (m - 1 = 3 at most in a bind): the per-row max / argmax over 3
     # columns cost more than the arithmetic on a small mesh. up: the main bone's blend parent
