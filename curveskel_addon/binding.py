@@ -167,6 +167,8 @@ def write_weights(mesh_obj, group_names, index, weight) -> None:
             raise CurveSkelError(f"vertex group name '{g}' is taken")
     n = len(index)
     k = int(_influences(index).max()) if n else 0
+    if k and int(index[:, :k].max()) >= len(group_names):
+        raise CurveSkelError("write_weights: an influence refers to no group")
     gidx = np.where(index[:, :k] >= 0, index[:, :k] + base, -1)
     bm = bmesh.new()
     try:
