@@ -85,10 +85,12 @@ def armature_bones(arm_obj) -> dict:
     bones.foreach_get("head_local", H)
     bones.foreach_get("tail_local", T)
     bones.foreach_get("use_deform", D)
-    # names in one call; the parent is a pointer (no foreach_get): one look-up per bone
+    # names in one call; the parent is a pointer (no foreach_get): one look-up per bone, by
+    # the bone itself (bpy structs hash and compare by their data pointer: no name read)
     names = bones.keys()
-    index = {nm: k for k, nm in enumerate(names)}
-    parent = np.array([index[p.name] if (p := b.parent) is not None else -1 for b in bones], np.int64)
+    structs = bones.values()
+    index = {b: k for k, b in enumerate(structs)}
+    parent = np.array([index.get(b.parent, -1) for b in structs], np.int64)
     return {"names": names, "heads": H.reshape(-1, 3).astype(np.float64),
             "tails": T.reshape(-1, 3).astype(np.float64), "parent": parent, "deform": D}
 
@@ -123,6 +125,15 @@ def unbind_mesh(mesh_obj, keep=()) -> int:
     return index
 
 
+def _influences(index) -> np.ndarray:
+    """Influences (entries >= 0) per row of an (n, k) index array, column by column (a per-row
+    sum over 4 columns costs more than the k additions)."""
+    count = np.zeros(len(index), np.int64)
+    for c in range(index.shape[1]):
+        count += index[:, c] >= 0
+    return count
+
+
 def write_weights(mesh_obj, group_names, index, weight) -> None:
     """Write (n, k) weights into vertex groups ``group_names`` through a bmesh deform layer.
 
@@ -144,8 +155,9 @@ def write_weights(mesh_obj, group_names, index, weight) -> None:
     # (0.3 ms for 106 groups)
     for g in set(groups.keys()).intersection(group_names):
         groups.remove(groups[g])
+    new = groups.new
     for g in group_names:
-        groups.new(name=g)
+        new(name=g)
     # the new groups are the last ones, in order: their indices follow, and a name Blender had
     # to change (taken, or too long) shows in keys()
     names = groups.keys()
@@ -153,10 +165,11 @@ def write_weights(mesh_obj, group_names, index, weight) -> None:
     for g, got in zip(group_names, names[base:]):
         if got != g:
             raise CurveSkelError(f"vertex group name '{g}' is taken")
-    gid = np.arange(base, len(names), dtype=np.int64)
     n = len(index)
-    k = int((index >= 0).sum(axis=1).max()) if n else 0
-    gidx = np.where(index[:, :k] >= 0, gid[np.maximum(index[:, :k], 0)] if len(gid) else -1, -1)
+    k = int(_influences(index).max()) if n else 0
+    if k and int(index[:, :k].max()) >= len(group_names):
+        raise CurveSkelError("write_weights: an influence refers to no group")
+    gidx = np.where(index[:, :k] >= 0, index[:, :k] + base, -1)
     bm = bmesh.new()
     try:
         # no normals: only the deform layer is written back (the mesh recomputes its normals)
@@ -274,17 +287,19 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, smooth: 
         fig.update(info)
         fig["mapping"] = "bones"
         # one group per deforming bone, named as the bone, in armature order
+        # bone -> group (the deforming bones' rank), -1 (the last entry) for none
+        remap = np.full(len(bones["names"]) + 1, -1, np.int64)
         deform_ids = np.flatnonzero(bones["deform"])
-        remap = np.full(len(bones["names"]), -1, np.int64)
         remap[deform_ids] = np.arange(len(deform_ids))
-        col = np.where(index >= 0, remap[np.maximum(index, 0)], -1)
+        col = remap[index]
         fig["mapping_seconds"] = time.perf_counter() - tw
         tw = time.perf_counter()
         write_weights(mesh_obj, deform_names, col, weight)
         groups = deform_names
         fig["weights_seconds"] = time.perf_counter() - tw
-        fig["max_influences"] = int((index >= 0).sum(axis=1).max()) if n else 0
-        fig["unweighted"] = int(np.sum(weight.sum(axis=1) <= 0))
+        fig["max_influences"] = int(_influences(index).max()) if n else 0
+        # rows sorted by decreasing weight: a vertex without weight has none in its first column
+        fig["unweighted"] = int(np.count_nonzero(weight[:, 0] <= 0)) if n else 0
         fig["blend"] = float(blend)
         fig["smooth"] = float(smooth)
         fig["junction_blend"] = float(junction_blend)

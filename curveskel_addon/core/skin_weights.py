@@ -50,7 +50,7 @@ DENSE_SMOOTH_WORK = 16_000_000
 
 def smoothstep(x):
     """3x^2 - 2x^3 on [0, 1] (clamped): 0 -> 0, 1 -> 1, zero slope at both ends."""
-    x = np.clip(x, 0.0, 1.0)
+    x = np.minimum(np.maximum(x, 0.0), 1.0)                 # np.clip
     return x * x * (3.0 - 2.0 * x)
 
 
@@ -173,11 +173,11 @@ def _smooth(index, weight, graph, iterations, max_influences, prune):
     n = len(index)
     nb = int(index.max()) + 1 if index.size else 0
     ok = index >= 0
-    rows = np.broadcast_to(np.arange(n)[:, None], index.shape)
+    rows = np.nonzero(ok)[0]                   # the row of each influence, in row-major order
     if iterations > 0 and graph is not None and nb and len(graph.indices) * nb <= DENSE_SMOOTH_WORK:
-        return _smooth_dense(rows[ok], index[ok], weight[ok], n, nb, graph, iterations,
+        return _smooth_dense(rows, index[ok], weight[ok], n, nb, graph, iterations,
                              max_influences, prune)
-    W = sp.csr_matrix((weight[ok], (rows[ok], index[ok])), shape=(n, max(nb, 1)))
+    W = sp.csr_matrix((weight[ok], (rows, index[ok])), shape=(n, max(nb, 1)))
     if iterations > 0 and graph is not None:
         S = graph.averaging()
         W.indices, W.indptr = W.indices.astype(S.indices.dtype), W.indptr.astype(S.indptr.dtype)
@@ -192,22 +192,33 @@ def _smooth_dense(rows, cols, vals, n, nb, graph, iterations, max_influences, pr
     """The diffusion of :func:`_smooth` on a dense (n, bones) float32 array: on small and
     middle-sized meshes a sparse-times-dense product per step costs 2-4x less than the sparse
     product (whose per-step bookkeeping dominates there). Weights below ``prune`` are dropped
-    after the last step (not after each), the 4 largest kept as in :func:`_largest`."""
+    after the last step (not after each), the 4 largest kept as in :func:`_largest`.
+
+    The 4 largest are picked on the transposed (bones, n) array: each pick's maximum and its
+    first column are reductions along the vertices (contiguous), where ``argmax`` along a row
+    of a few dozen bones costs 5-10x more on a small mesh. The weights below ``prune`` are
+    smaller than any kept one, so they are dropped as they come up instead of in a pass
+    of their own (the same result).
+    """
     S = graph.averaging(np.float32)
     Wd = np.bincount(rows * nb + cols, weights=vals, minlength=n * nb).astype(np.float32)
     Wd = Wd.reshape(n, nb)
     for _ in range(int(iterations)):
         Wd = S @ Wd
-    Wd[Wd < prune] = 0.0
     out_i = np.full((n, max_influences), -1, np.int64)
     out_w = np.zeros((n, max_influences))
-    rank = np.arange(n)
+    WT = np.ascontiguousarray(Wd.T)
+    rank = np.arange(nb, 0, -1, dtype=np.int16 if nb < 2**15 else np.int64)[:, None]
+    at = np.arange(n)
+    floor = max(float(prune), 0.0)
     for j in range(min(max_influences, nb)):
-        best = np.argmax(Wd, axis=1)             # the first of equal values: the lower column
-        v = Wd[rank, best]
-        out_i[:, j] = np.where(v > 0, best, -1)
-        out_w[:, j] = v                          # 0 where the row has no weight left
-        Wd[rank, best] = 0.0
+        v = WT.max(axis=0)
+        best = nb - (WT == v) * rank                 # the first of equal values: the lower column
+        best = best.min(axis=0)
+        keep = v >= floor if floor > 0 else v > 0
+        out_i[:, j] = np.where(keep, best, -1)
+        out_w[:, j] = np.where(keep, v, 0.0)         # 0 where the row has no weight left
+        WT[best, at] = 0.0
     total = out_w.sum(axis=1, keepdims=True)
     out_w = np.divide(out_w, total, out=np.zeros_like(out_w), where=total > 0)
     return out_i, out_w
@@ -323,8 +334,9 @@ def bone_partners(heads, tails, parent, deform=None, *, tol=None):
     R = len(H)
     deform = np.ones(R, bool) if deform is None else np.asarray(deform, bool).ravel()
     if tol is None:
-        ext = np.ptp(np.concatenate([H, T]), axis=0) if R else np.zeros(3)
-        tol = max(1e-4 * float(np.linalg.norm(ext)), 1e-9)
+        HT = np.concatenate([H, T])
+        ext = HT.max(axis=0) - HT.min(axis=0) if R else np.zeros(3)         # np.ptp
+        tol = max(1e-4 * float(np.sqrt(ext.dot(ext))), 1e-9)                # np.linalg.norm
     head_mode = np.zeros(R, np.int64)
     tail_mode = np.zeros(R, np.int64)
     head_partner = np.full(R, -1, np.int64)
@@ -332,8 +344,10 @@ def bone_partners(heads, tails, parent, deform=None, *, tol=None):
     n_kids = np.bincount(par[(par >= 0) & deform], minlength=R) if R else np.zeros(0, np.int64)
     pp = np.maximum(par, 0)
     live = (par >= 0) & deform & deform[pp] if R else np.zeros(0, bool)
-    on_tail = live & (np.linalg.norm(H - T[pp], axis=1) <= tol)
-    on_head = live & ~on_tail & (np.linalg.norm(H - H[pp], axis=1) <= tol)
+    # np.linalg.norm(x, axis=1) is sqrt(add.reduce(x * x, axis=1)): the same, without its checks
+    dT, dH = H - T[pp], H - H[pp]
+    on_tail = live & (np.sqrt(np.add.reduce(dT * dT, axis=1)) <= tol)
+    on_head = live & ~on_tail & (np.sqrt(np.add.reduce(dH * dH, axis=1)) <= tol)
     attached = on_tail | on_head
     head_mode[on_head], head_partner[on_head] = BLEND_HUB, par[on_head]
     # a chain joint: the parent's only (deforming) child, on its tail; other children on the
@@ -353,7 +367,7 @@ def _closest_on_segments(P, A, B):
     D = B - A
     L2 = np.einsum("ij,ij->i", D, D)
     s = np.einsum("ij,ij->i", P - A, D) / np.where(L2 > 0, L2, 1.0)
-    s = np.clip(np.where(L2 > 0, s, 0.0), 0.0, 1.0)
+    s = np.minimum(np.maximum(np.where(L2 > 0, s, 0.0), 0.0), 1.0)       # np.clip
     Q = A + s[:, None] * D
     return s, np.einsum("ij,ij->i", P - Q, P - Q)
 
@@ -493,8 +507,25 @@ def _closest_bones(P, H, T, ids):
     if n == 0 or B == 1:
         return np.zeros(n, np.int64)
     X = np.concatenate([H[ids], T[ids]])              # sigma = t * head + (1 - t) * tail
-    segs = np.stack([np.arange(B), B + np.arange(B)], 1)
+    segs = np.arange(2 * B).reshape(2, B).T                       # bone k: (k, B + k)
     return closest_bone(P, X, segs)
+
+
+def _kept_patches(label, comp, R):
+    """Vertices in the patch their bone keeps: each bone's largest connected patch (``comp``:
+    the patch of each vertex, one bone per patch); of equally large ones, that of the bone's
+    lowest vertex (the first in a stable sort by bone, then by decreasing size)."""
+    n = len(label)
+    size = np.bincount(comp)
+    sz = size[comp]
+    top = np.zeros(R, np.int64)
+    np.maximum.at(top, label, sz)
+    cand = np.flatnonzero(sz == top[label])
+    first = np.full(R, n, np.int64)
+    np.minimum.at(first, label[cand], cand)
+    keep = np.zeros(len(size), bool)
+    keep[comp[first[first < n]]] = True
+    return keep[comp]
 
 
 def _labels(P, graph, H, T, deform):
@@ -506,13 +537,7 @@ def _labels(P, graph, H, T, deform):
     label = closest = ids[_closest_bones(P, H, T, ids)]
     if n and len(graph.edges):
         same = label[graph.rows] == label[graph.indices]
-        comp = graph.components(same)
-        size = np.bincount(comp)
-        order = np.lexsort((-size[comp], label))
-        first = np.r_[True, label[order][1:] != label[order][:-1]]
-        keep_comp = np.zeros(len(size), bool)
-        keep_comp[comp[order[first]]] = True
-        kept = keep_comp[comp]
+        kept = _kept_patches(label, graph.components(same), len(H))
         if not kept.all():
             near = graph.nearest(P, kept)
             move = (~kept) & (near >= 0)
@@ -613,14 +638,24 @@ def bone_weights(V, F, heads, tails, parent, deform=None, *, blend: float = 0.25
     k = 0
     if smooth > 0 and len(E) and n:
         dE = P[E[:, 0]] - P[E[:, 1]]
-        h = float(np.mean(np.sqrt(np.einsum("ij,ij->i", dE, dE))))      # mean edge length
-        k = smoothing_iterations(smooth * float(np.median(dist)), h, cap=SMOOTH_CAP)
+        h = float(np.sqrt(np.einsum("ij,ij->i", dE, dE)).sum()) / len(E)    # mean edge length
+        k = smoothing_iterations(smooth * _median(dist), h, cap=SMOOTH_CAP)
     index, weight = _smooth(index, weight, graph, k, max_influences, 1e-4)
     # keep the main bone's family only: itself and, across a joint that blends (a chain joint;
     # any attached parent when junctions blend too), its parent or one child
     blends = (hm == BLEND_SYMMETRIC) | ((hm == BLEND_HUB) & (junction_blend > 0))
     index, weight = _keep_family(index, weight, np.where(blends, par, -2))
     return index, weight, {"relabelled": int(np.sum(label != closest)), "smooth_iterations": int(k)}
+
+
+def _median(x) -> float:
+    """``np.median`` of a 1-D float array without NaN (the mean of the two middle values when
+    the length is even, as numpy computes it), without its generic machinery."""
+    m = len(x) // 2
+    if len(x) % 2:
+        return float(np.partition(x, m)[m])
+    part = np.partition(x, (m - 1, m))
+    return float((part[m - 1] + part[m]) / 2)
 
 
 def _keep_family(index, weight, blend_parent):
@@ -645,18 +680,27 @@ def _keep_family(index, weight, blend_parent):
     if m < 2:
         out_i[live, 0], out_w[live, 0] = main[live], 1.0
         return out_i, out_w
-    rest = index[:, 1:]
-    bp = np.append(blend_parent, -2)                     # bp[-1]: an unused column has none
+    bp = np.concatenate((blend_parent, [-2]))            # bp[-1]: an unused column has none
     mp = np.where(live, bp[main], -2)
-    up = (rest == mp[:, None]) & (rest >= 0)
-    down = (bp[rest] == main[:, None]) & (rest >= 0) & live[:, None]
-    rows = np.arange(n)
-    w_up = np.where(up, weight[:, 1:], 0.0).max(axis=1)  # at most one parent per row
-    first_down = np.argmax(down, axis=1)
-    has_down = down[rows, first_down]
-    w_down = np.where(has_down, weight[rows, 1 + first_down], 0.0)
+    # column by column (m - 1 = 3 at most in a bind): the per-row max / argmax over 3
+    # columns cost more than the arithmetic on a small mesh. up: the main bone's blend parent
+    # (at most one per row); down: the first child blending with it (weights decrease, so the
+    # heaviest); -1 for none
+    w_up = np.zeros(n)
+    i_up = np.full(n, -1, np.int64)
+    w_down = np.zeros(n)
+    i_down = np.full(n, -1, np.int64)
+    for c in range(m - 1, 0, -1):                        # the first match wins: last column first
+        col, w = index[:, c], weight[:, c]
+        ok = col >= 0
+        up = ok & (col == mp)
+        down = ok & (bp[col] == main) & live
+        w_up = np.where(up, w, w_up)
+        i_up = np.where(up, col, i_up)
+        w_down = np.where(down, w, w_down)
+        i_down = np.where(down, col, i_down)
     take_up = w_up >= w_down                              # w_up 0 (no parent): the child, if any
-    other = np.where(take_up, rest[rows, np.argmax(up, axis=1)], rest[rows, first_down])
+    other = np.where(take_up, i_up, i_down)
     w_other = np.where(take_up, w_up, w_down)
     other = np.where(w_other > 0, other, -1)
     w_main = np.where(live, weight[:, 0], 0.0)

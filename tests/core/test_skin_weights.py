@@ -415,3 +415,73 @@ def test_keep_family_equals_the_masked_reference(seed):
     got = _keep_family(index, weight, np.where(blends, par, -2))
     assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
     assert (got[0][:, 1] >= 0).sum() > 50                      # rows with two influences occur
+
+
+def _top4_reference(Wd, max_influences, prune):
+    """The dense smoothing's 4 largest as first written: prune, then argmax along each row."""
+    Wd = Wd.copy()
+    n, nb = Wd.shape
+    Wd[Wd < prune] = 0.0
+    out_i = np.full((n, max_influences), -1, np.int64)
+    out_w = np.zeros((n, max_influences))
+    rank = np.arange(n)
+    for j in range(min(max_influences, nb)):
+        best = np.argmax(Wd, axis=1)
+        v = Wd[rank, best]
+        out_i[:, j] = np.where(v > 0, best, -1)
+        out_w[:, j] = v
+        Wd[rank, best] = 0.0
+    total = out_w.sum(axis=1, keepdims=True)
+    out_w = np.divide(out_w, total, out=np.zeros_like(out_w), where=total > 0)
+    return out_i, out_w
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_dense_top4_equals_the_argmax_reference(seed):
+    """_smooth_dense picks the 4 largest on the transposed array, dropping weights below the
+    prune threshold as they come up: bit for bit the row-wise argmax after a pruning pass (ties
+    to the lower column, rows with fewer than 4 weights, rows with none, values under prune)."""
+    from curveskel_addon.core.skin_weights import _Graph, _smooth_dense
+
+    rng = np.random.default_rng(seed)
+    n, nb = 300, 9
+    Wd = rng.choice([0.0, 0.0, 0.0, 5e-5, 0.125, 0.25, 0.5, 0.3], size=(n, nb)).astype(np.float32)
+    Wd[::17] = 0.0                                                    # rows with no weight
+    Wd[1::13] = np.float32(0.25)                                     # rows of equal weights
+    rows, cols = np.nonzero(Wd)
+    graph = _Graph(np.zeros((0, 2), np.int64), n)
+    for prune in (1e-4, 0.0):
+        got = _smooth_dense(rows, cols, Wd[rows, cols].astype(np.float64), n, nb, graph, 0, 4, prune)
+        want = _top4_reference(Wd, 4, prune)
+        assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    assert (want[0][:, 3] >= 0).any() and (want[0][:, 0] < 0).any()
+
+
+def test_median_is_numpys():
+    from curveskel_addon.core.skin_weights import _median
+
+    rng = np.random.default_rng(5)
+    for n in (1, 2, 3, 10, 11, 451, 2930):
+        x = rng.random(n) * 10.0 ** rng.integers(-3, 3)
+        for y in (x, np.round(x, 1)):                                   # ties too
+            assert _median(y) == float(np.median(y))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_kept_patches_equal_the_sorted_reference(seed):
+    """Each bone keeps its largest patch, of equal ones that of its lowest vertex: the same as
+    the first patch per bone after a stable sort by bone, then by decreasing size (ties made
+    likely: patches of 1-3 vertices)."""
+    from curveskel_addon.core.skin_weights import _kept_patches
+
+    rng = np.random.default_rng(seed)
+    R, P = 7, 60
+    patch_bone = rng.integers(0, R, P)
+    comp = rng.permutation(np.repeat(np.arange(P), rng.integers(1, 4, P)))
+    label = patch_bone[comp]
+    size = np.bincount(comp)
+    order = np.lexsort((-size[comp], label))
+    first = np.r_[True, label[order][1:] != label[order][:-1]]
+    keep = np.zeros(len(size), bool)
+    keep[comp[order[first]]] = True
+    assert np.array_equal(_kept_patches(label, comp, R), keep[comp])
