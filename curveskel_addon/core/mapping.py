@@ -150,17 +150,8 @@ def closest_bone(points, joints, bones) -> np.ndarray:
     bone = np.zeros(n, np.int64)
     if n == 0 or nb == 1:
         return bone
-    o = 0.5 * (col_min(P) + col_max(P))
-    A = X[bones[:, 1]] - o
-    D = X[bones[:, 0]] - X[bones[:, 1]]
-    DD = np.einsum("ij,ij->i", D, D)
-    AD = np.einsum("ij,ij->i", A, D)
-    AA = np.einsum("ij,ij->i", A, A)
-    inv = np.divide(1.0, DD, out=np.zeros_like(DD), where=DD > 0)
-    Pc = P - o
-    scale = max(float(np.einsum("ij,ij->i", Pc, Pc).max()), float(AA.max()), float(DD.max()), 1e-300)
+    Pc, A, D, DD, AD, AA, inv, tol = _bone_frame(P, X, bones)
     f32 = np.float32
-    tol = f32(1e-5 * scale)
     PcT = np.ascontiguousarray(Pc.T, f32)
     Am, Dm = (-2.0 * A).astype(f32), D.astype(f32)
     AD, AA, inv, DD = (a.astype(f32)[:, None] for a in (AD, AA, inv, DD))
@@ -169,16 +160,7 @@ def closest_bone(points, joints, bones) -> np.ndarray:
     step = max(1, _CHUNK // nb)
     for s in range(0, n, step):
         p = PcT[:, s:s + step]
-        num = Dm @ p                                  # (p - a).d, bones x points
-        num -= AD
-        t = num * inv
-        np.clip(t, 0.0, 1.0, out=t)
-        d2 = Am @ p                                   # |p - sigma|^2 - |p|^2
-        d2 += AA
-        num *= 2.0
-        num -= t * DD
-        num *= t
-        d2 -= num
+        d2 = _screen(Dm @ p, Am @ p, AD, AA, inv, DD)     # bones x points
         # the bones within tol of the least: one (the f32 argmin, kept) or near-ties, whose
         # candidates (the f32 best included) are compared exactly below
         near = d2 <= d2.min(axis=0) + tol
@@ -204,6 +186,37 @@ def closest_bone(points, joints, bones) -> np.ndarray:
     return bone
 
 
+def _bone_frame(P, X, bones):
+    """The bones' dot-product terms about the points' centre o: (P - o, a = x_j - o, d = x_i - x_j,
+    d.d, a.d, a.a, 1 / d.d (0 for a zero-length bone), and the float32 screen's tolerance, 1e-5
+    of the squared extent)."""
+    o = 0.5 * (col_min(P) + col_max(P))
+    A = X[bones[:, 1]] - o
+    D = X[bones[:, 0]] - X[bones[:, 1]]
+    DD = np.einsum("ij,ij->i", D, D)
+    AD = np.einsum("ij,ij->i", A, D)
+    AA = np.einsum("ij,ij->i", A, A)
+    inv = np.divide(1.0, DD, out=np.zeros_like(DD), where=DD > 0)
+    Pc = P - o
+    scale = max(float(np.einsum("ij,ij->i", Pc, Pc).max()), float(AA.max()), float(DD.max()), 1e-300)
+    return Pc, A, D, DD, AD, AA, inv, np.float32(1e-5 * scale)
+
+
+def _screen(num, d2, AD, AA, inv, DD):
+    """|p - sigma|^2 - |p|^2 for every (point, bone) from the products ``num = p.d`` and
+    ``d2 = -2 p.a`` (either layout; the bone terms broadcast along it), in place: with
+    num' = p.d - a.d and t = clip(num' / d.d), the value is a.a - 2 p.a - t (2 num' - t d.d)."""
+    num -= AD
+    t = num * inv
+    np.clip(t, 0.0, 1.0, out=t)
+    d2 += AA
+    num *= 2.0
+    num -= t * DD
+    num *= t
+    d2 -= num
+    return d2
+
+
 def _all_bones(P, X, bones):
     """Every bone a candidate: choose the bone with dot products, then exact t and dist2.
 
@@ -218,33 +231,15 @@ def _all_bones(P, X, bones):
     bone = np.zeros(n, np.int64)
     if n == 0 or nb == 1:
         return (bone, *_on_bones(P, X, bones, bone))
-    o = 0.5 * (col_min(P) + col_max(P))
-    A = X[bones[:, 1]] - o
-    D = X[bones[:, 0]] - X[bones[:, 1]]
-    DD = np.einsum("ij,ij->i", D, D)
-    AD = np.einsum("ij,ij->i", A, D)
-    AA = np.einsum("ij,ij->i", A, A)
-    inv = np.divide(1.0, DD, out=np.zeros_like(DD), where=DD > 0)
-    Pc = P - o
-    scale = max(float(np.einsum("ij,ij->i", Pc, Pc).max()), float(AA.max()), float(DD.max()), 1e-300)
+    Pc, A, D, DD, AD, AA, inv, tol = _bone_frame(P, X, bones)
     f32 = np.float32
-    tol = f32(1e-5 * scale)
     Pc, At, Dt = Pc.astype(f32), np.ascontiguousarray(-2.0 * A.T, f32), np.ascontiguousarray(D.T, f32)
     AD, AA, inv, DD = AD.astype(f32), AA.astype(f32), inv.astype(f32), DD.astype(f32)
     rows, cands, counts = [], [], []
     step = max(1, _CHUNK // nb)
     for s in range(0, n, step):
         p = Pc[s:s + step]
-        num = p @ Dt                                  # (p - a).d
-        num -= AD
-        t = num * inv
-        np.clip(t, 0.0, 1.0, out=t)
-        d2 = p @ At                                   # |p - sigma|^2 - |p|^2
-        d2 += AA
-        num *= 2.0
-        num -= t * DD
-        num *= t
-        d2 -= num
+        d2 = _screen(p @ Dt, p @ At, AD, AA, inv, DD)
         best = np.argmin(d2, axis=1)
         bone[s:s + len(d2)] = best
         # rows where another bone is within tol of the best: the best set aside, the least
