@@ -417,3 +417,23 @@ def test_mirror_asymmetry_of_a_skeleton_and_its_reflection():
     assert mirror_asymmetry(V, (np.array([[1., 0, 0], [1, 3, 0]]), bone), 10.0) == pytest.approx(0.2)
     box = np.array([[x, y, z] for x in (-1., 1) for y in (-2., 2) for z in (-3., 3)])
     assert mirror_asymmetry(box, (np.array([[1., 0, 0], [1, 3, 0]]), bone), 10.0) is None
+
+
+def test_reference_centring_measures_how_far_a_curve_runs_from_its_sections_centres():
+    """scripts/reference_centring.py on a capsule (radius 1, axis along z from 0 to 6): its own axis
+    lies on its sections' centroids (offset ~0); the axis moved by 0.3 along x is 0.3 off
+    them, and the curve through the centroids is 0.3 from it."""
+    rc = _script("reference_centring")
+    from tests.meshes import capsule
+
+    V, F = capsule(radius=1.0, length=6.0)
+    D = float(np.linalg.norm(np.ptp(V, axis=0)))
+    R = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 5.0]])
+    RB = np.array([[0, 1]])
+    found, off, to_ref = rc.reference_centring(V, F, R, RB)
+    # (to_ref to the reference sampled every D/2000: within half a step of it)
+    assert found == 1.0 and off.max() * D < 1e-3 and to_ref.max() <= 1 / 4000
+    found, off, to_ref = rc.reference_centring(V, F, R + [0.3, 0.0, 0.0], RB)
+    assert found == 1.0
+    np.testing.assert_allclose(off * D, 0.3, atol=0.01)
+    np.testing.assert_allclose(to_ref * D, 0.3, atol=0.01)
