@@ -383,11 +383,30 @@ class SkeletonRun:
         if guards:
             put_back(st.joints, st.bones, before,
                      lambda X: np.unique(np.concatenate([g(X) for g in guards])))
-        if short > 0:
-            J2, B2, bone_map = merge_short_bones(st.joints, st.bones, short)
-            if len(J2) != len(st.joints):
-                st.joints, st.bones = J2, B2
-                st.apply_bone_map(bone_map)       # the radii are refitted next
+        # short bones merged with the radii the polish had, then again with the fitted ones
+        # (the fitted radius can be much larger: the hand kept a bone of 0.057 r)
+        self._merge_short_bones(short)
+        self._fit_final_radii()
+        if self._merge_short_bones(short):
+            self._fit_final_radii()
+        return moved
+
+    def _merge_short_bones(self, fraction) -> bool:
+        """Bones shorter than ``fraction`` of their radius merged (:func:`.edit.merge_short_bones`);
+        whether any was."""
+        st = self.state
+        if not fraction > 0:
+            return False
+        J2, B2, bone_map = merge_short_bones(st.joints, st.bones, fraction)
+        if len(J2) == len(st.joints):
+            return False
+        st.joints, st.bones = J2, B2
+        st.apply_bone_map(bone_map)
+        return True
+
+    def _fit_final_radii(self) -> None:
+        """The returned radii: fitted to the surface, then to the silhouette; sigma mapped."""
+        st = self.state
         if SURFACE_RADII:
             # one reweighting is start enough for the silhouette's fit (the five of the
             # nearest-bone fit alone: the same mean recon, 0.73-0.75x over 1-5)
@@ -398,7 +417,6 @@ class SkeletonRun:
                 st.joints[:, 3] = self._silhouette_radii()
         else:
             st.remap()
-        return moved
 
     def _shared_sections(self, pairs) -> list:
         """For each path pair ``(JP, JQ)`` (joint rows x, y, z, r), which joints of ``JP`` share
