@@ -37,9 +37,8 @@ from .quality import _point_segment_distance, skeleton_topology
 
 __all__ = ["chains", "leaf_chains", "merge_chains", "zip_parallel_chains", "cycle_bones",
            "collapse_short_bones", "merge_short_bones", "prune_leaves", "compact", "chain_turns",
-           "remove_sharp_turns",
-           "edit_stage", "apply_edit", "point_polyline_distance", "contain_stage",
-           "outside_worse", "put_back", "EDIT_CONSTANTS"]
+           "remove_sharp_turns", "edit_stage", "apply_edit", "point_polyline_distance",
+           "contain_stage", "outside_worse", "put_back", "EDIT_CONSTANTS"]
 
 #: The edit stage's constants (pipeline defaults), named once.
 EDIT_CONSTANTS = {
@@ -812,10 +811,11 @@ def zip_parallel_chains(joints, bones, frac, *, max_rounds=20, loops=False, sect
     taking a list of ``(JP, JQ)``, two paths' joint rows (x, y, z, r), and returning for each
     a (len(JP),) bool: which joints of the first share their cross-section with the second
     (:func:`.cross_section.shared_sections_many`; all pairs of a round in one call); where both
-    paths run on cycles (:func:`cycle_bones`), sharing a section counts as side by side whatever the distance: two
-    loops through one web between holes, apart across the web's depth (3holes: 0.045 D, half
-    a radius). Limbs and trunks (no cycle) are judged by distance alone: an arm's first joints
-    lie in the chest's section.
+    paths run on cycles (:func:`cycle_bones`; a short bridge inside the junction's ball does not
+    count against a path, :func:`_runs_on_cycles`), sharing a section counts as side by side
+    whatever the distance: two loops through one web between holes, apart across the web's
+    depth (3holes: 0.045 D, half a radius). Limbs and trunks (no cycle) are judged by distance
+    alone: an arm's first joints lie in the chest's section.
 
     Returns joints, bones, bone_map.
     """

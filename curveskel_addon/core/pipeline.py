@@ -349,7 +349,6 @@ class SkeletonRun:
         their radius merged, radii refitted to the surface. Returns the number of chain joints
         that moved."""
         st = self.state
-        short = EDIT_CONSTANTS["short_bone_fraction"]
         if SHEET_ZIP:
             apply_edit(st, *zip_parallel_chains(st.joints, st.bones,
                                                 EDIT_CONSTANTS["zip_radius_fraction"],
@@ -385,6 +384,7 @@ class SkeletonRun:
                      lambda X: np.unique(np.concatenate([g(X) for g in guards])))
         # short bones merged with the radii the polish had, then again with the fitted ones
         # (the fitted radius can be much larger: the hand kept a bone of 0.057 r)
+        short = EDIT_CONSTANTS["short_bone_fraction"]
         self._merge_short_bones(short)
         self._fit_final_radii()
         if self._merge_short_bones(short):
