@@ -791,6 +791,14 @@ def _zip_extent(joints, P, Q, frac, shared=None):
         okP |= shared[0]
         okQ |= shared[1]
         okP[0] = okQ[0] = True                    # the junction itself
+        # the far end of a short bridge inside the junction's ball is the junction's: 3holes'
+        # right loop reaches the middle loop's side through one (its far junction 0.51 r
+        # from the first, past the half radius, left the right web with two strands)
+        r0 = joints[P[0], 3]
+        if len(P) > 1 and np.linalg.norm(XP[1] - XP[0]) < r0:
+            okP[1] = True
+        if len(Q) > 1 and np.linalg.norm(XQ[1] - XQ[0]) < r0:
+            okQ[1] = True
     kP = int(np.argmin(okP)) - 1 if not okP.all() else len(P) - 1
     kQ = int(np.argmin(okQ)) - 1 if not okQ.all() else len(Q) - 1
     return max(kP, 0), max(kQ, 0)

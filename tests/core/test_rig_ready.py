@@ -575,13 +575,14 @@ def test_spot_and_its_mirror_triangulation_keep_the_same_limbs(shared_meshes):
     assert tips[0] == tips[1] == 6, tips
 
 
-def test_the_left_web_of_3holes_holds_one_strand(shared_meshes):
-    """Between 3holes' left and middle holes the web carries both loops' sides: they ran up it
-    side by side, 0.045 D apart across the web's depth (two bones for one part). Zipped where
-    they share cross-sections (pipeline.SHEET_ZIP): the mid-plane of the holes crosses the
-    skeleton once inside that web (twice before), and the length ratio meets the issue's
-    0.85-1.25 (1.30 before; measured 1.23). The right web still holds two: there the right
-    loop reaches the middle loop's side by a diagonal from above the right hole."""
+def test_each_web_of_3holes_holds_one_strand(shared_meshes):
+    """Between two of 3holes' holes the web carries both loops' sides: they ran up it side by
+    side, 0.045 D apart across the web's depth (two bones for one part). Zipped where they
+    share cross-sections (pipeline.SHEET_ZIP): the mid-plane of the holes crosses the skeleton
+    once inside each web, and the length ratio meets the issue's 0.85-1.25 (1.30 before the
+    zip; 1.23 with the left web zipped; measured 1.15 with both). The right web held two until
+    a short bridge's far junction, inside the first junction's ball, counted as the junction
+    (edit._zip_extent): the right loop's side reaches the middle loop's through such a bridge."""
     from curveskel_addon.core.mesh_io import read_mesh
     from curveskel_addon.core.quality import shape_measures
     V, F = read_mesh(shared_meshes / "3holes.off")
@@ -593,15 +594,15 @@ def test_the_left_web_of_3holes_holds_one_strand(shared_meshes):
     xs = np.sort(x[np.abs(y) < 0.01 * np.ptp(x)])
     gap = np.flatnonzero(np.diff(xs) > 0.1 * np.ptp(x))
     assert len(gap) == 3
-    web = (xs[gap[0] + 1], xs[gap[1]])                        # between the first two holes
+    webs = [(xs[gap[0] + 1], xs[gap[1]]), (xs[gap[1] + 1], xs[gap[2]])]
     J = (sk.joints[:, :3] - c) @ axes[:2].T
     a, b = J[sk.bones[:, 0]], J[sk.bones[:, 1]]
     cross = (a[:, 1] <= 0) != (b[:, 1] <= 0)
     t = a[cross, 1] / (a[cross, 1] - b[cross, 1])
     at = a[cross, 0] + t * (b[cross, 0] - a[cross, 0])
-    assert int(np.sum((at > web[0]) & (at < web[1]))) == 1
+    assert [int(np.sum((at > lo) & (at < hi))) for lo, hi in webs] == [1, 1]
     d = shape_measures(V, F, sk, str(shared_meshes.parent / "reference" / "3holes.json"))
-    assert 0.85 <= d["length_ratio"] <= 1.25, d["length_ratio"]
+    assert 0.85 <= d["length_ratio"] <= 1.2, d["length_ratio"]
 
 
 def test_no_bone_of_the_hand_is_shorter_than_a_tenth_of_its_radius(shared_meshes):
