@@ -170,6 +170,22 @@ def plate_with_holes(size=PLATE["size"], hole_radius=PLATE["hole_radius"], hole_
     return _to_arrays(plate.refine_to_length(edge))
 
 
+def frames_and_bar(frame=(2.0, 2.0, 0.4), hole_radius=0.55, frame_x=2.5, bar=(3.2, 0.3, 0.3),
+                   edge: float = 0.15):
+    """Two square frames (a box ``frame`` with a hole of ``hole_radius`` through it along z)
+    centred at x = -``frame_x`` and ``frame_x``, joined by a square bar ``bar`` along x
+    (a pair of glasses: two loops and a bridge of their own); manifold3d, edges refined to
+    ``edge``. Genus 2. Returns (V, F)."""
+    import manifold3d as m3
+
+    solid = m3.Manifold.cube(list(bar), center=True)
+    for x in (-frame_x, frame_x):
+        f = (m3.Manifold.cube(list(frame), center=True)
+             - m3.Manifold.cylinder(2 * frame[2], hole_radius, hole_radius, 48, True))
+        solid = solid + f.translate([x, 0.0, 0.0])
+    return _to_arrays(solid.refine_to_length(edge))
+
+
 def t_beam(length: float = 8.0, web=(1.5, 0.2), flange=(1.2, 0.2), edge: float = 0.15):
     """A T-section beam along x (rocker-arm's lever, made plain): a web ``web`` = (height,
     thickness) from y = -height to 0, centred on z = 0, under a flange ``flange`` = (width,

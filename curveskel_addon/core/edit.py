@@ -35,10 +35,14 @@ from scipy.sparse.csgraph import connected_components
 from .centreline import joint_adjacency
 from .quality import _point_segment_distance, skeleton_topology
 
-__all__ = ["chains", "leaf_chains", "merge_chains", "zip_parallel_chains", "cycle_bones",
+__all__ = ["bridges_to_rungs", "chains", "leaf_chains", "merge_chains", "zip_parallel_chains", "cycle_bones",
            "collapse_short_bones", "merge_short_bones", "prune_leaves", "compact", "chain_turns",
            "remove_sharp_turns", "edit_stage", "apply_edit", "point_polyline_distance",
            "contain_stage", "outside_worse", "put_back", "EDIT_CONSTANTS"]
+
+#: A bridge between two loops becomes their shared rung when its cross-section reaches more
+#: than this many of its radii (:func:`bridges_to_rungs`).
+RUNG_MIN_EXTENT = 3.0
 
 #: The edit stage's constants (pipeline defaults), named once.
 EDIT_CONSTANTS = {
@@ -966,3 +970,146 @@ def _zip(joints, bones, P, Pb, Q, Qb):
         bone_map[b] = add_ids[int(np.argmin(np.linalg.norm(mids - c, axis=1)))]
     j2, b2, _ = compact(new, allb, None)
     return j2, b2, bone_map
+
+
+def bridges_to_rungs(joints, bones, section, *, min_extent=RUNG_MIN_EXTENT, inside=None):
+    """Two loops joined by a bridge across one web share a rung instead (split + merge).
+
+    The Reeb graph follows f: where f crosses the web between two holes of a flat part (the
+    plate with three holes: f runs along the plate, the web between two holes is wider across
+    than along it), the web's level sets are one strip each, so the first approximation joins
+    the two loops by a bridge *along* f, through the web's middle, where the web's own curve
+    runs *across* f, shared by both loops. A bridge chain whose two ends are junctions of
+    degree 3 with their two other bones on cycles, and whose cross-section (the plane through
+    its middle M across the line from one loop's middle to the other's) reaches more than
+    ``min_extent`` of its radius, is replaced by a rung along the direction e in which the four
+    arms part (their offsets from M across that line, first principal direction), through the
+    centroid of the web's section across e: each side's two arms meet at a junction as far out
+    as the farther of them, the two junctions joined by a straight chain. Made only when each
+    end's two arms lie on opposite sides, the cycles stay as many, and (``inside`` given) no new
+    bone leaves the mesh. A bridge with a section of its own (two rings joined by a bar) stays.
+
+    Parameters
+    ----------
+    joints : (J, 4) float
+    bones : (B, 2) int
+    section : callable (X (3,), T (3,), reach) -> (centroid (3,), extent)
+        The cross-section of the mesh through X across T (extent inf: none within reach).
+    min_extent : float
+    inside : callable (k, 3) -> (k,) bool, optional
+
+    Returns joints, bones, bone_map.
+    """
+    joints = np.asarray(joints, np.float64)
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    bone_map = np.arange(len(bones))
+    done = set()                  # bridges tried and kept (joint ids: reset after an edit)
+    while True:
+        out = _one_rung(joints, bones, section, min_extent, inside, done)
+        if out is None:
+            return joints, bones, bone_map
+        joints, bones, m = out
+        bone_map = m[bone_map]
+        done = set()
+
+
+def _one_rung(joints, bones, section, min_extent, inside, done):
+    J = len(joints)
+    deg = np.bincount(bones.ravel(), minlength=J)
+    on_cycle = cycle_bones(J, bones)
+    X = joints[:, :3]
+    for js, bs in chains(J, bones):
+        a, b = js[0], js[-1]
+        key = (min(a, b), max(a, b), len(js))
+        if key in done or a == b or on_cycle[bs].any() or deg[a] != 3 or deg[b] != 3:
+            continue
+        done.add(key)
+        arms = []
+        for end in (a, b):
+            own = [(int(p + q - end), n) for n, (p, q) in enumerate(bones)
+                   if end in (p, q) and n not in bs]
+            if len(own) != 2 or not on_cycle[[n for _, n in own]].all():
+                break
+            arms.append(own)
+        if len(arms) != 2:
+            continue
+        P = X[js]
+        s = _arc(P)
+        if s[-1] <= 0:
+            continue
+        M = np.array([np.interp(s[-1] / 2, s, P[:, c]) for c in range(3)])
+        rM = float(np.interp(s[-1] / 2, s, np.abs(joints[js, 3])))
+        # across the bridge: from one loop's middle to the other's (the bridge's own ends
+        # sit wherever f closed and opened the loops, a tilt the rung would inherit)
+        T = _loop_middle(X, bones, b, arms[1]) - _loop_middle(X, bones, a, arms[0])
+        T = T / max(np.linalg.norm(T), 1e-300)
+        _, extent = section(M, T, 8.0 * max(rM, s[-1]))
+        if not np.isfinite(extent) or extent < min_extent * rM:
+            continue
+        ids = [k for own in arms for k, _ in own]
+        O = X[ids] - M
+        O = O - np.outer(O @ T, T)
+        e = np.linalg.svd(O, full_matrices=False)[2][0]
+        # the rung through the middle of the web: the centroid of the section across it
+        C, ext_e = section(M, e, 8.0 * max(rM, s[-1]))
+        if np.isfinite(ext_e):
+            M = C
+        h = (X[ids] - M) @ e
+        if np.sign(h[0]) == np.sign(h[1]) or np.sign(h[2]) == np.sign(h[3]):
+            continue
+        up = [i for i in range(4) if h[i] > 0]
+        lo = [i for i in range(4) if h[i] <= 0]
+        hu, hl = float(h[up].max()), float(h[lo].min())
+        step = s[-1] / max(len(js) - 1, 1)
+        n_mid = max(int(round((hu - hl) / max(step, 1e-300))) - 1, 1)
+        hh = np.linspace(hu, hl, n_mid + 2)
+        new = np.column_stack([M + np.outer(hh, e), np.full(len(hh), rM)])
+        base = J
+        rung = list(range(base, base + len(hh)))
+        add = [(rung[k], rung[k + 1]) for k in range(len(rung) - 1)]
+        add += [(ids[i], rung[0]) for i in up] + [(ids[i], rung[-1]) for i in lo]
+        gone = np.zeros(len(bones), bool)
+        gone[bs] = True
+        for own in arms:
+            gone[[n for _, n in own]] = True
+        allj = np.vstack([joints, new])
+        keep_b = np.flatnonzero(~gone)
+        nb = np.vstack([bones[keep_b], np.array(add, np.int64)])
+        if _cycles(len(allj), nb) != _cycles(J, bones):
+            continue
+        if inside is not None:
+            A = allj[np.array(add)[:, 0], :3]
+            B = allj[np.array(add)[:, 1], :3]
+            t = np.linspace(0, 1, 9)[1:-1]
+            Q = (A[:, None] + t[None, :, None] * (B - A)[:, None]).reshape(-1, 3)
+            if not inside(Q).all():
+                continue
+        bone_map = np.full(len(bones), -1, np.int64)
+        bone_map[keep_b] = np.arange(len(keep_b))
+        mids = 0.5 * (allj[nb[:, 0], :3] + allj[nb[:, 1], :3])
+        for g in np.flatnonzero(gone):
+            c = 0.5 * (X[bones[g, 0]] + X[bones[g, 1]])
+            bone_map[g] = int(np.argmin(np.linalg.norm(mids - c, axis=1)))
+        j2, b2, _ = compact(allj, nb, None)
+        return j2, b2, bone_map
+    return None
+
+
+def _loop_middle(X, bones, end, arms):
+    """The mean of the joints of the shortest loop through the junction ``end`` and its two
+    ``arms`` ((joint, bone) pairs): the path between the arms' joints that avoids ``end``."""
+    from scipy.sparse.csgraph import dijkstra
+    J = len(X)
+    keep = (bones[:, 0] != end) & (bones[:, 1] != end)
+    B = bones[keep]
+    w = np.linalg.norm(X[B[:, 0]] - X[B[:, 1]], axis=1) + 1e-300
+    G = sp.coo_matrix((np.r_[w, w], (np.r_[B[:, 0], B[:, 1]], np.r_[B[:, 1], B[:, 0]])),
+                      shape=(J, J)).tocsr()
+    (k1, _), (k2, _) = arms
+    _, pred = dijkstra(G, indices=k1, return_predecessors=True)
+    path, k = [end], k2
+    while k >= 0 and k != k1:
+        path.append(k)
+        k = pred[k]
+    path.append(k1)
+    return X[path].mean(axis=0)

@@ -35,9 +35,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .centreline import SURFACE_RADII_ROUNDS, centre_stage, fit_radii_surface, smooth_chains
-from .cross_section import polish_chains, shared_sections_many
-from .edit import (EDIT_CONSTANTS, apply_edit, contain_stage, edit_stage, merge_short_bones,
-                   outside_worse, point_polyline_distance, put_back, zip_parallel_chains)
+from .cross_section import polish_chains, section_loops, shared_sections_many
+from .edit import (EDIT_CONSTANTS, apply_edit, bridges_to_rungs, contain_stage, edit_stage,
+                   merge_short_bones, outside_worse, point_polyline_distance, put_back,
+                   zip_parallel_chains)
 from .errors import CurveSkelError
 from .flaps import lay_flaps
 from .junctions import onto_trunks
@@ -73,6 +74,10 @@ CROSSING_GUARD = True
 POLISH = True
 #: ... and junctions move onto the straight line of their trunk (:mod:`.junctions`).
 TRUNK_JUNCTIONS = True
+#: Before it, two loops joined by a bridge across one web (the Reeb graph's link along f through
+#: a web wider across than along f) share a rung across the web instead
+#: (:func:`.edit.bridges_to_rungs`: the plate with three holes).
+RUNGS = True
 #: ... but a chain into a flap (an ear: flat sections) is laid from its junction into the
 #: flap's middle first, and stays there (:mod:`.flaps`).
 FLAPS = True
@@ -340,7 +345,8 @@ class SkeletonRun:
 
     def _polish(self) -> int:
         """The polish stage: two loops' sides in one part zipped into one strand where they
-        share cross-sections (``SHEET_ZIP``), a flap's chain laid into the flap's middle
+        share cross-sections (``SHEET_ZIP``), two loops joined by a bridge across one web given
+        a shared rung across it (``RUNGS``), a flap's chain laid into the flap's middle
         (:mod:`.flaps`), other
         chain joints and tips towards their cross-sections' centroids
         (:func:`.cross_section.polish_chains`), junctions onto their trunks
@@ -353,6 +359,9 @@ class SkeletonRun:
             apply_edit(st, *zip_parallel_chains(st.joints, st.bones,
                                                 EDIT_CONSTANTS["zip_radius_fraction"],
                                                 loops=True, sections=self._shared_sections))
+        if RUNGS:
+            apply_edit(st, *bridges_to_rungs(st.joints, st.bones, self._section,
+                                             inside=st.inside))
         before = st.joints.copy()
         laid = np.zeros(0, np.int64)
         if FLAPS:
@@ -417,6 +426,14 @@ class SkeletonRun:
                 st.joints[:, 3] = self._silhouette_radii()
         else:
             st.remap()
+
+    def _section(self, X, T, reach):
+        """(centroid, extent) of the mesh's cross-section through the point X across T within
+        ``reach`` (:func:`.cross_section.section_loops`; extent inf: none)."""
+        st = self.state
+        C, extent, _ = section_loops(st.V, st.F, X[None], T[None], [reach],
+                                     face_of=st.faces_around, vertex_edge=st.vertex_edges)
+        return C[0], extent[0]
 
     def _shared_sections(self, pairs) -> list:
         """For each path pair ``(JP, JQ)`` (joint rows x, y, z, r), which joints of ``JP`` share

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from curveskel_addon.core.edit import (chain_turns, chains, collapse_short_bones, cycle_bones,
+from curveskel_addon.core.edit import (bridges_to_rungs, chain_turns, chains, collapse_short_bones,
+                                       cycle_bones,
                                        merge_chains, merge_short_bones, outside_worse, prune_leaves,
                                        put_back, remove_sharp_turns, zip_parallel_chains)
 from curveskel_addon.core.quality import crossing_pairs
@@ -453,6 +454,64 @@ def test_zip_by_shared_sections_leaves_limbs_alone():
     J2, B2, _ = zip_parallel_chains(J, B, 0.5, loops=True,
                                     sections=lambda pairs: [np.ones(len(p[0]), bool) for p in pairs])
     assert np.array_equal(B2, B) and np.array_equal(J2, J)
+
+
+def _two_loops_and_a_bridge():
+    """Two loops (radius 0.2) either side of x = 0, their near junctions at x = -0.5 and 0.5
+    joined by a bridge along x through (0.1, 0.1) (a Reeb graph's link along f through the
+    web between two holes); each junction's arms leave at y = +-0.6 and -0.7."""
+    pts = [(-0.5, 0.0), (-0.7, 0.6), (-1.5, 0.7), (-2.2, 0.0), (-1.5, -0.7), (-0.8, -0.7),
+           (0.5, 0.0), (0.7, 0.6), (1.5, 0.7), (2.2, 0.0), (1.5, -0.7), (0.8, -0.7),
+           (0.1, 0.1)]
+    B = np.array([(0, 1), (1, 2), (2, 3), (3, 4), (4, 5), (5, 0),
+                  (6, 7), (7, 8), (8, 9), (9, 10), (10, 11), (11, 6), (0, 12), (12, 6)])
+    return _joints(pts, 0.2), B
+
+
+def _plate_web(extent):
+    """A stand-in for the mesh's cross-section: across x (the bridge) a strip reaching
+    ``extent``; across y (the rung) the web between the holes, centred on x = 0."""
+    def section(X, T, reach):
+        if abs(T[0]) > 0.9:
+            return np.array([X[0], 0.0, 0.0]), extent
+        return np.array([0.0, X[1], 0.0]), 0.5
+    return section
+
+
+def test_a_bridge_across_a_web_becomes_the_two_loops_shared_rung():
+    J, B = _two_loops_and_a_bridge()
+    assert not cycle_bones(len(J), B)[-2:].any()         # the link is a bridge
+    J2, B2, m = bridges_to_rungs(J, B, _plate_web(1.0))
+    assert _cycles(len(J2), B2) == 2
+    assert cycle_bones(len(J2), B2).all()                # no bridge left: the loops share a bone
+    deg = np.bincount(B2.ravel(), minlength=len(J2))
+    forks = J2[deg == 3, :3]
+    # across the web (the loops' middles lie on the x axis) through its centre x = 0, from
+    # the higher upper arm (0.6) to the lower lower arm (-0.7)
+    assert np.allclose(forks[:, 0], 0.0) and np.allclose(sorted(forks[:, 1]), [-0.7, 0.6])
+    rung = J2[(deg == 2) & (np.abs(J2[:, 0]) < 1e-9), :3]
+    assert len(rung) >= 1 and np.allclose(rung[:, 2], 0.0)
+    assert m.shape == (len(B),) and m.min() >= 0 and m.max() < len(B2)
+    # each junction joins an upper (or lower) arm of each loop and the rung
+    for f in np.flatnonzero(deg == 3):
+        nb = [int(p + q - f) for p, q in B2 if f in (p, q)]
+        xs = sorted(np.sign(np.round(J2[nb, 0], 9)))
+        assert xs == [-1, 0, 1], J2[nb]
+
+
+def test_a_bridge_with_a_section_of_its_own_stays():
+    """Two rings joined by a bar: the section across the bar reaches its radius, no more."""
+    J, B = _two_loops_and_a_bridge()
+    J2, B2, m = bridges_to_rungs(J, B, _plate_web(0.25))
+    assert np.array_equal(B2, B) and np.array_equal(J2, J)
+    assert np.array_equal(m, np.arange(len(B)))
+
+
+def test_a_rung_that_would_leave_the_mesh_is_not_made():
+    J, B = _two_loops_and_a_bridge()
+    J2, B2, _ = bridges_to_rungs(J, B, _plate_web(1.0),
+                                 inside=lambda P: np.abs(P[:, 1]) < 0.65)
+    assert np.array_equal(B2, B)
 
 
 def test_cycle_bones_are_the_bones_that_are_not_bridges():
