@@ -38,7 +38,7 @@ from .centreline import SURFACE_RADII_ROUNDS, centre_stage, fit_radii_surface, s
 from .cross_section import polish_chains, section_loops, shared_sections_many
 from .edit import (EDIT_CONSTANTS, apply_edit, bridges_to_rungs, contain_stage, edit_stage,
                    merge_short_bones, outside_worse, point_polyline_distance, put_back,
-                   zip_parallel_chains)
+                   remove_kinks, zip_parallel_chains)
 from .errors import CurveSkelError
 from .flaps import lay_flaps
 from .junctions import onto_trunks
@@ -78,6 +78,10 @@ TRUNK_JUNCTIONS = True
 #: a web wider across than along f) share a rung across the web instead
 #: (:func:`.edit.bridges_to_rungs`: the plate with three holes).
 RUNGS = True
+#: After the polish, a chain joint turning sharply inside its own ball (its two bones together
+#: shorter than its radius) is merged away (:func:`.edit.remove_kinks`): a knot the silhouette
+#: does not see (the hand's palm, spot's back).
+KINKS = True
 #: ... but a chain into a flap (an ear: flat sections) is laid from its junction into the
 #: flap's middle first, and stays there (:mod:`.flaps`).
 FLAPS = True
@@ -396,9 +400,24 @@ class SkeletonRun:
         short = EDIT_CONSTANTS["short_bone_fraction"]
         self._merge_short_bones(short)
         self._fit_final_radii()
-        if self._merge_short_bones(short):
+        changed = self._merge_short_bones(short)
+        if KINKS:
+            changed |= self._remove_kinks()
+        if changed:
             self._fit_final_radii()
         return moved
+
+    def _remove_kinks(self) -> bool:
+        """Sharp turns inside their joint's own ball merged away (:func:`.edit.remove_kinks`,
+        with the fitted radii); whether any was."""
+        st = self.state
+        J2, B2, bone_map = remove_kinks(st.joints, st.bones, EDIT_CONSTANTS["sharp_turn"],
+                                        inside=st.inside)
+        if len(J2) == len(st.joints):
+            return False
+        st.joints, st.bones = J2, B2
+        st.apply_bone_map(bone_map)
+        return True
 
     def _merge_short_bones(self, fraction) -> bool:
         """Bones shorter than ``fraction`` of their radius merged (:func:`.edit.merge_short_bones`);

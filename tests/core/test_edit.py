@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from curveskel_addon.core.edit import (bridges_to_rungs, chain_turns, chains, collapse_short_bones,
-                                       cycle_bones,
+                                       cycle_bones, remove_kinks,
                                        merge_chains, merge_short_bones, outside_worse, prune_leaves,
                                        put_back, remove_sharp_turns, zip_parallel_chains)
 from curveskel_addon.core.quality import crossing_pairs
@@ -512,6 +512,27 @@ def test_a_rung_that_would_leave_the_mesh_is_not_made():
     J2, B2, _ = bridges_to_rungs(J, B, _plate_web(1.0),
                                  inside=lambda P: np.abs(P[:, 1]) < 0.65)
     assert np.array_equal(B2, B)
+
+
+def test_a_kink_inside_its_joints_ball_is_merged_away_a_bend_or_a_junctions_is_not():
+    """A chain along x (radius 1) with a 112-degree kink on bones of 0.36 each (together 0.72
+    r): the kink's joint goes, its neighbours joined. The same kink with bones of 0.6 (1.2 r,
+    a bend the silhouette sees) stays, and so does a kink next to a junction."""
+    def chain(h):
+        return _joints([(0, 0), (2, 0), (2 + h * 2 / 3, h), (2 + h * 4 / 3, 0), (4, 0)], 1.0)
+    B = np.array([(0, 1), (1, 2), (2, 3), (3, 4)])
+    J2, B2, m = remove_kinks(chain(0.3), B)
+    assert len(J2) == 4 and not np.any(np.all(np.isclose(J2[:, :2], [2.2, 0.3]), axis=1))
+    assert _cycles(len(J2), B2) == 0 and m.min() >= 0
+    ang = chain_turns(J2, B2)[3]
+    assert ang.max() < 60
+    J3, B3, _ = remove_kinks(chain(0.5), B)                # bones of 0.6: 1.2 r together
+    assert np.array_equal(B3, B) and np.array_equal(J3, chain(0.5))
+    # a branch at joint 1: the kink is next to a junction
+    Jb = np.vstack([chain(0.3), [[2, -3, 0, 1.0]]])
+    Bb = np.vstack([B, [(1, 5)]])
+    J4, B4, _ = remove_kinks(Jb, Bb)
+    assert np.array_equal(B4, Bb)
 
 
 def test_cycle_bones_are_the_bones_that_are_not_bridges():
