@@ -355,12 +355,12 @@ def test_bent_tube_is_one_smooth_chain():
 _CURVE_XFAIL = {
     "plate_with_holes": "measured 2026-12-03 (twelfth session): to_ref 0.0102 D, from_ref 0.0084 D "
                         "(0.018 / 0.014 before the rungs): three loops round the holes sharing "
-                        "a rung across each web, but a tail to a corner at each end of the plate "
-                        "(0.66 and 0.81 long; without them 0.0092 / 0.0089), each ring a polygon "
-                        "of about a dozen joints (the analytic rings sampled at 12 joints each "
-                        "score 0.0036 / 0.0038 against themselves: the default detail's joint "
-                        "spacing alone spends most of 0.005), and the rungs' ends at y = 0.20-0.43 "
-                        "where the rings meet them at 0.42",
+                        "a rung across each web; of to_ref, 0.0051 lies at the plate's two ends "
+                        "(a tail into a corner, 0.66 and 0.81 long, and the loop's end side "
+                        "0.06-0.2 inside the ring's x = +-2.75), 0.0035 in the webs (the rungs' "
+                        "ends at y = 0.20-0.43 where the rings meet them at 0.42) and 0.0016 along "
+                        "the bands. Not the joint spacing: with simplify 0.05 (74 joints) "
+                        "0.0097 / 0.0072",
 }
 
 
