@@ -30,19 +30,16 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
+from scipy.sparse.csgraph import connected_components, dijkstra
 
 from .centreline import joint_adjacency
 from .quality import _point_segment_distance, skeleton_topology
 
-__all__ = ["bridges_to_rungs", "chains", "leaf_chains", "merge_chains", "zip_parallel_chains", "cycle_bones",
-           "collapse_short_bones", "merge_short_bones", "prune_leaves", "compact", "chain_turns",
-           "remove_kinks", "remove_sharp_turns", "edit_stage", "apply_edit", "point_polyline_distance",
-           "contain_stage", "outside_worse", "put_back", "EDIT_CONSTANTS"]
-
-#: A bridge between two loops becomes their shared rung when its cross-section reaches more
-#: than this many of its radii (:func:`bridges_to_rungs`).
-RUNG_MIN_EXTENT = 3.0
+__all__ = ["bridges_to_rungs", "chains", "leaf_chains", "merge_chains", "zip_parallel_chains",
+           "cycle_bones", "collapse_short_bones", "merge_short_bones", "prune_leaves", "compact",
+           "chain_turns", "remove_kinks", "remove_sharp_turns", "edit_stage", "apply_edit",
+           "point_polyline_distance", "contain_stage", "outside_worse", "put_back",
+           "EDIT_CONSTANTS"]
 
 #: The edit stage's constants (pipeline defaults), named once.
 EDIT_CONSTANTS = {
@@ -74,6 +71,12 @@ EDIT_CONSTANTS = {
     # no bone a rigger can grab (the containment splits and two junctions drawn together
     # leave them: botijo's 0.001 r, penguin's 0.016 r); its ends become one joint
     "short_bone_fraction": 0.1,
+    # split + merge, in the polish: a bridge between two loops whose cross-section reaches more
+    # than this many of its radii is a web between two holes, and becomes the loops' shared
+    # rung (bridges_to_rungs); the sections are looked for within ``rung_reach`` of the larger
+    # of its radius and its length
+    "rung_min_extent": 3.0,
+    "rung_reach": 8.0,
 }
 
 
@@ -833,9 +836,9 @@ def _zip_extent(joints, P, Q, frac, shared=None):
         okP |= shared[0]
         okQ |= shared[1]
         okP[0] = okQ[0] = True                    # the junction itself
-        # the far end of a short bridge inside the junction's ball is the junction's: 3holes'
-        # right loop reaches the middle loop's side through one (its far junction 0.51 r
-        # from the first, past the half radius, left the right web with two strands)
+        # a path's first joint inside the junction's ball is the junction's (the far end of a
+        # short bridge: 3holes' right loop reaches the middle loop's side through one, its far
+        # junction 0.51 r from the first, past the half radius, left the right web two strands)
         r0 = joints[P[0], 3]
         if len(P) > 1 and np.linalg.norm(XP[1] - XP[0]) < r0:
             okP[1] = True
@@ -1010,7 +1013,7 @@ def _zip(joints, bones, P, Pb, Q, Qb):
     return j2, b2, bone_map
 
 
-def bridges_to_rungs(joints, bones, section, *, min_extent=RUNG_MIN_EXTENT, inside=None):
+def bridges_to_rungs(joints, bones, section, *, min_extent=None, inside=None):
     """Two loops joined by a bridge across one web share a rung instead (split + merge).
 
     The Reeb graph follows f: where f crosses the web between two holes of a flat part (the
@@ -1033,13 +1036,16 @@ def bridges_to_rungs(joints, bones, section, *, min_extent=RUNG_MIN_EXTENT, insi
     bones : (B, 2) int
     section : callable (X (3,), T (3,), reach) -> (centroid (3,), extent)
         The cross-section of the mesh through X across T (extent inf: none within reach).
-    min_extent : float
+    min_extent : float, optional
+        ``EDIT_CONSTANTS["rung_min_extent"]`` if not given.
     inside : callable (k, 3) -> (k,) bool, optional
 
     Returns joints, bones, bone_map.
     """
     joints = np.asarray(joints, np.float64)
     bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    if min_extent is None:
+        min_extent = EDIT_CONSTANTS["rung_min_extent"]
     bone_map = np.arange(len(bones))
     done = set()                  # bridges tried and kept (joint ids: reset after an edit)
     while True:
@@ -1081,7 +1087,8 @@ def _one_rung(joints, bones, section, min_extent, inside, done):
         # sit wherever f closed and opened the loops, a tilt the rung would inherit)
         T = _loop_middle(X, bones, b, arms[1]) - _loop_middle(X, bones, a, arms[0])
         T = T / max(np.linalg.norm(T), 1e-300)
-        _, extent = section(M, T, 8.0 * max(rM, s[-1]))
+        reach = EDIT_CONSTANTS["rung_reach"] * max(rM, s[-1])
+        _, extent = section(M, T, reach)
         if not np.isfinite(extent) or extent < min_extent * rM:
             continue
         ids = [k for own in arms for k, _ in own]
@@ -1089,7 +1096,7 @@ def _one_rung(joints, bones, section, min_extent, inside, done):
         O = O - np.outer(O @ T, T)
         e = np.linalg.svd(O, full_matrices=False)[2][0]
         # the rung through the middle of the web: the centroid of the section across it
-        C, ext_e = section(M, e, 8.0 * max(rM, s[-1]))
+        C, ext_e = section(M, e, reach)
         if np.isfinite(ext_e):
             M = C
         h = (X[ids] - M) @ e
@@ -1102,8 +1109,7 @@ def _one_rung(joints, bones, section, min_extent, inside, done):
         n_mid = max(int(round((hu - hl) / max(step, 1e-300))) - 1, 1)
         hh = np.linspace(hu, hl, n_mid + 2)
         new = np.column_stack([M + np.outer(hh, e), np.full(len(hh), rM)])
-        base = J
-        rung = list(range(base, base + len(hh)))
+        rung = list(range(J, J + len(hh)))
         add = [(rung[k], rung[k + 1]) for k in range(len(rung) - 1)]
         add += [(ids[i], rung[0]) for i in up] + [(ids[i], rung[-1]) for i in lo]
         gone = np.zeros(len(bones), bool)
@@ -1136,7 +1142,6 @@ def _one_rung(joints, bones, section, min_extent, inside, done):
 def _loop_middle(X, bones, end, arms):
     """The mean of the joints of the shortest loop through the junction ``end`` and its two
     ``arms`` ((joint, bone) pairs): the path between the arms' joints that avoids ``end``."""
-    from scipy.sparse.csgraph import dijkstra
     J = len(X)
     keep = (bones[:, 0] != end) & (bones[:, 1] != end)
     B = bones[keep]
