@@ -535,6 +535,19 @@ def test_a_kink_inside_its_joints_ball_is_merged_away_a_bend_or_a_junctions_is_n
     assert np.array_equal(B4, Bb)
 
 
+def test_rungs_and_kinks_leave_trees_and_empty_skeletons_alone():
+    """No loop, no rung: a fork's bridges stay whatever the sections say; a single bone and an
+    empty skeleton pass through both operators unchanged."""
+    J, B = _fork(1.4)
+    J2, B2, m = bridges_to_rungs(J, B, _plate_web(5.0))
+    assert np.array_equal(B2, B) and np.array_equal(J2, J) and np.array_equal(m, np.arange(len(B)))
+    for J, B in ((_joints([(0, 0), (1, 0)], 1.0), np.array([(0, 1)])),
+                 (np.zeros((0, 4)), np.zeros((0, 2), np.int64))):
+        for op in (lambda J, B: bridges_to_rungs(J, B, _plate_web(5.0)), remove_kinks):
+            J2, B2, m = op(J, B)
+            assert np.array_equal(B2, B) and np.array_equal(J2, J) and len(m) == len(B)
+
+
 def test_cycle_bones_are_the_bones_that_are_not_bridges():
     J, B = _two_loops_through_a_web()
     assert cycle_bones(len(J), B).all()
