@@ -70,7 +70,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
+from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from .errors import CurveSkelError
 from .mapping import closest_on_bones
@@ -79,6 +79,7 @@ from .meb import min_enclosing_ball, size_of
 from .mesh_graph import edge_csr, edge_ids, edge_lengths, edge_table
 from .pole import find_pole
 from .rows import next_corners
+from .vertex_area import vertex_areas
 
 #: f through the inside as well as over the surface on components with handles (:mod:`.interior`).
 INTERIOR_PATHS = True
@@ -89,7 +90,9 @@ MIN_LEVELS = 6          # at least this many levels over max f
 MAX_LEVELS = 400        # at most this many levels (first attempt)
 MAX_LEVELS_REFINED = 1600
 MAX_REFINEMENTS = 3
-CAP_FRACTION = 0.5      # caps lower than this fraction of s are noise
+CAP_FRACTION = 0.5      # caps lower than this fraction of s are noise ...
+CAP_AREA = 3.0          # ... unless, on a junction, their branch half a spacing lower is still
+                        # apart and covers this many s^2 of surface (a limb, not a bump)
 NUDGE = 1e-6            # zero-length bones: nudge by this fraction of the diagonal
 
 
@@ -277,8 +280,18 @@ def _cycles(n_reg, below, above) -> int:
     return int(ok.sum() - n_reg + nc)
 
 
-def _remove_noise_caps(rb: _Reeb, ct: _Contours, f, pole, s) -> tuple[_Reeb, np.ndarray, int]:
-    """Merge small top caps into the region below; returns (reeb, kept loop ids, count)."""
+def _remove_noise_caps(rb: _Reeb, ct: _Contours, f, pole, s, E=None,
+                       area=None) -> tuple[_Reeb, np.ndarray, int]:
+    """Merge small top caps into the region below; returns (reeb, kept loop ids, count).
+
+    A cap lower than ``CAP_FRACTION`` of the spacing is noise. On a junction's region (``E``,
+    the mesh's edges, and ``area``, a vertex mask's surface area, given) it is kept when its
+    branch is a limb: still apart from the junction's other branches ``CAP_FRACTION`` of a
+    spacing lower (:func:`_apart_below`) and covering at least ``CAP_AREA`` s^2 of surface there
+    (a tube at least about a spacing thick). How far below a tip the last level falls is chance,
+    of the triangulation too: spot triangulated as its mirror image lost both front legs, their
+    caps 0.11 of a spacing high (0.62 as given), their branches 5.1 s^2; homer's fingers and
+    armadillo's claws, as short, cover 1.1-1.9 s^2 and stay noise."""
     R, L = rb.n_regions, len(rb.below)
     deg = np.bincount(rb.below, minlength=R) + np.bincount(rb.above, minlength=R)
     top = np.full(R, -1, np.int64)                  # the loop below a region (for deg-1 regions)
@@ -291,6 +304,12 @@ def _remove_noise_caps(rb: _Reeb, ct: _Contours, f, pole, s) -> tuple[_Reeb, np.
     height = maxf[cand] - ct.levels[ct.loop_level[lp] - 1]
     under = rb.below[lp]
     noise = (height < CAP_FRACTION * s) & (deg[under] >= 2)
+    if E is not None and area is not None:
+        for k in np.flatnonzero(noise & (deg[under] >= 3)):
+            t = ct.levels[ct.loop_level[lp[k]] - 1] - CAP_FRACTION * s
+            apart, branch = _apart_below(rb.reg_v, E, f, cand[k], under[k], t)
+            if apart and area(branch) >= CAP_AREA * s * s:
+                noise[k] = False
     caps, lp, under = cand[noise], lp[noise], under[noise]
     if len(caps) == 0:
         return rb, np.arange(L), 0
@@ -304,6 +323,25 @@ def _remove_noise_caps(rb: _Reeb, ct: _Contours, f, pole, s) -> tuple[_Reeb, np.
     above = new[rb.above[kept]]
     nr = len(uniq)
     return _Reeb(nr, new[rb.reg_v], below, above, _cycles(nr, below, above)), kept, len(caps)
+
+
+def _apart_below(reg_v, E, f, cap, under, t) -> tuple[bool, np.ndarray]:
+    """Whether the cap region's branch is still apart from the rest at f = t, and the branch:
+    the vertices of the cap, and of the region below it with f >= t, reached from the cap's top
+    through edges among them ((n,) bool); apart when they touch no vertex of another region
+    with f >= t (the junction's other branches above)."""
+    n = len(f)
+    W = (reg_v == cap) | ((reg_v == under) & (f >= t))
+    inside = W[E[:, 0]] & W[E[:, 1]]
+    Ei = E[inside]
+    G = sp.coo_matrix((np.ones(len(Ei), np.int8), (Ei[:, 0], Ei[:, 1])), shape=(n, n)).tocsr()
+    vs = np.flatnonzero(reg_v == cap)
+    top = int(vs[np.argmax(f[vs])])
+    reached = np.zeros(n, bool)
+    reached[breadth_first_order(G, top, directed=False, return_predecessors=False)] = True
+    other = (reg_v != cap) & (reg_v != under) & (f >= t)
+    touch = (reached[E[:, 0]] & other[E[:, 1]]) | (reached[E[:, 1]] & other[E[:, 0]])
+    return not bool(touch.any()), reached
 
 
 # ------------------------------------------------------------------------------------------------
@@ -533,7 +571,13 @@ def _approximate(V, F, E, expected, spacing, seed, extra, timings, t0) -> FirstA
         s, cap = s / 2, MAX_LEVELS_REFINED
         meta["refinements"] = attempt + 1
     t0 = time.perf_counter()
-    rb, kept, removed = _remove_noise_caps(rb, ct, f, pole, s)
+    areas = []                  # the vertex areas, computed only if a junction's cap asks
+
+    def area(mask):
+        if not areas:
+            areas.append(vertex_areas(V, F))
+        return float(areas[0][mask].sum())
+    rb, kept, removed = _remove_noise_caps(rb, ct, f, pole, s, E, area)
     timings["reeb"] += time.perf_counter() - t0
     meta.update(spacing_used=s / diag if diag > 0 else 1.0, levels=int(K), cycles=int(rb.cycles),
                 expected_cycles=expected, noise_caps_removed=int(removed),
