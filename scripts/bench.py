@@ -26,6 +26,7 @@ import json
 import os
 import platform
 import resource
+import statistics
 import subprocess
 import sys
 import time
@@ -139,13 +140,41 @@ def stem(spec: str) -> str:
 # ---------------------------------------------------------------------------------------------
 # workers (run in a subprocess; print one JSON line)
 # ---------------------------------------------------------------------------------------------
-def worker_speed(spec: str, repeat: int = 1) -> dict:
-    import numpy as np
-    from scipy.sparse.csgraph import dijkstra
-
-    from curveskel_addon.core import skeletonize
+def _dijkstra_graph(V, F):
+    """(seconds to clean, seconds to build, the edge-length graph) of a mesh: the baselines'."""
     from curveskel_addon.core.mesh_graph import adjacency, edge_lengths, unique_edges
     from curveskel_addon.core.mesh_input import clean_mesh
+
+    t0 = time.perf_counter()
+    cm = clean_mesh(V, F)
+    t_clean = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    E = unique_edges(cm.F)
+    A = adjacency(len(cm.V), E, edge_lengths(cm.V, E))
+    return t_clean, time.perf_counter() - t0, A
+
+
+def _fastest_dijkstra(A, repeat: int) -> float:
+    from scipy.sparse.csgraph import dijkstra
+
+    best = float("inf")
+    for _ in range(max(repeat, 1)):
+        t0 = time.perf_counter()
+        dijkstra(A, directed=False, indices=0)
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def worker_dijkstra(spec: str, repeat: int = 1) -> dict:
+    """The Dijkstra baseline alone, in a process of its own (its time settles per process)."""
+    V, F, _ = load_mesh(spec)
+    return {"mesh": spec, "dijkstra_s": _fastest_dijkstra(_dijkstra_graph(V, F)[2], repeat)}
+
+
+def worker_speed(spec: str, repeat: int = 1) -> dict:
+    import numpy as np
+
+    from curveskel_addon.core import skeletonize
 
     V, F, t_load = load_mesh(spec)
     import gc
@@ -166,19 +195,9 @@ def worker_speed(spec: str, repeat: int = 1) -> dict:
         del sk2
     t_total, timings = min(all_runs, key=lambda x: x[0])
     # baselines, measured in this run on this mesh (after skeletonize: they do not lift its peak)
-    t0 = time.perf_counter()
-    cm = clean_mesh(V, F)
-    t_clean = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    E = unique_edges(cm.F)
-    A = adjacency(len(cm.V), E, edge_lengths(cm.V, E))
-    t_graph = time.perf_counter() - t0
-    t_dijkstra = float("inf")
-    for _ in range(max(repeat, 1)):       # the fastest of as many runs as skeletonize had
-        t0 = time.perf_counter()
-        dijkstra(A, directed=False, indices=0)
-        t_dijkstra = min(t_dijkstra, time.perf_counter() - t0)
-    del cm, E, A
+    t_clean, t_graph, A = _dijkstra_graph(V, F)
+    t_dijkstra = _fastest_dijkstra(A, repeat)      # the fastest of as many runs as skeletonize had
+    del A
     res = {"mesh": spec, "V": int(len(V)), "F": int(len(F)), "seconds": t_total,
            "all_seconds": [x[0] for x in all_runs], "stages": timings, "joints": sk.n_joints, "bones": sk.n_bones,
            "iterations": sk.iterations, "load_s": t_load, "clean_s": t_clean, "graph_s": t_graph,
@@ -432,6 +451,8 @@ STAGE_ORDER = ["clean", "components", "pole", "contours", "reeb", "meb", "mappin
                "centre", "edit", "optimise", "finish", "radii", "contain", "polish"]
 #: Issue 11's speed targets: ratio to one Dijkstra for ~100k meshes, seconds for the shared
 #: meshes (armadillo and horse get more) and for 1M (with the 2 GB peak).
+#: Processes whose Dijkstra baseline is taken (median) for the ratio targets.
+DIJKSTRA_PROCESSES = 5
 SPEED_TARGETS = {"dijkstra_ratio_100k": 25.0, "shared_s": 1.0, "shared_big_s": 1.5,
                  "shared_big": ("armadillo.obj", "horse.off"), "s_1M": 10.0, "peak_mb_1M": 2048}
 
@@ -459,6 +480,15 @@ def run_speed(args) -> None:
         print(f"[speed] {spec} ...", end=" ", flush=True)
         r = spawn(["speed", spec, str(args.repeat)], args.timeout)
         r.setdefault("mesh", spec)
+        if "error" not in r and speed_target(r)[0].endswith("dijkstra"):
+            # one Dijkstra settles at one of two speeds per process (the star: 31 or 40 ms, ten
+            # runs in each of three processes) while the skeleton's time holds: the baseline is
+            # the median of the skeleton's process and DIJKSTRA_PROCESSES - 1 more
+            more = [spawn(["dijkstra", spec, str(args.repeat)], args.timeout)
+                    for _ in range(DIJKSTRA_PROCESSES - 1)]
+            r["dijkstra_s_all"] = [r["dijkstra_s"]] + [m["dijkstra_s"] for m in more
+                                                       if "dijkstra_s" in m]
+            r["dijkstra_s"] = float(statistics.median(r["dijkstra_s_all"]))
         results.append(r)
         print(f"{r.get('seconds', float('nan')):.2f} s" if "error" not in r else r["error"], flush=True)
     if not args.no_write:
@@ -502,7 +532,9 @@ extra memory (an upper bound if loading the file peaked higher). Baselines and b
 after it, so they do not raise the peak. Baselines measured in the same run on the same mesh:
 *× dijkstra* = total / one `scipy.sparse.csgraph.dijkstra` from one source over the
 edge-length graph, the fastest of as many runs as the total (the paper's geodesic approximation; the pipeline needs at least three for
-the pole search and f); *× clean* = total / `clean_mesh` (validation, duplicate merge).
+the pole search and f); for the meshes with a ratio target, the median of that over the
+skeleton's process and {DIJKSTRA_PROCESSES - 1} fresh ones (one Dijkstra settles at one of two speeds per
+process: the star's 31 or 40 ms); *× clean* = total / `clean_mesh` (validation, duplicate merge).
 Targets (issue 11, column *target*): the shared meshes < 1 s (armadillo and horse < 1.5 s);
 a ~100k-vertex mesh ≤ 25× one Dijkstra over its edge graph; 1M < 10 s and < 2 GB peak.
 
@@ -1030,6 +1062,8 @@ def main(argv=None) -> None:
         kind, *rest = args._worker
         if kind == "speed":
             res = worker_speed(rest[0], int(rest[1]) if len(rest) > 1 else 1)
+        elif kind == "dijkstra":
+            res = worker_dijkstra(rest[0], int(rest[1]) if len(rest) > 1 else 1)
         elif kind == "skeleton":
             res = worker_skeleton(rest[0])
         else:
