@@ -172,8 +172,6 @@ def worker_dijkstra(spec: str, repeat: int = 1) -> dict:
 
 
 def worker_speed(spec: str, repeat: int = 1) -> dict:
-    import numpy as np
-
     from curveskel_addon.core import skeletonize
 
     V, F, t_load = load_mesh(spec)

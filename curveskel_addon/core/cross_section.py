@@ -284,12 +284,18 @@ def shared_sections_many(V, F, pairs, *, face_of=None, vertex_edge=None):
         k = len(i)
         a, b = slice(at, at + k), slice(at + k, at + 2 * k)
         at += 2 * k
-        scale = max(float(R[a][0]), 1e-300)
-        # the same loop: the same area and centroid (each point's loop is computed on its own)
-        out[n][i] = (np.isfinite(extent[a]) & np.isfinite(extent[b]) & (area[a] > 0)
-                     & (np.abs(area[a] - area[b]) <= 1e-9 * area[a])
-                     & (np.linalg.norm(C[a] - C[b], axis=1) <= 1e-9 * scale))
+        out[n][i] = (np.isfinite(extent[a]) & (area[a] > 0)
+                     & _same_loop(C[a], area[a], C[b], extent[b], area[b],
+                                  max(float(R[a][0]), 1e-300)))
     return out
+
+
+def _same_loop(C, area, Cq, extent_q, area_q, scale):
+    """(k,) bool: whether the loops found from two points are one loop (each point's loop is
+    computed on its own: the same area and centroid, to rounding; ``scale`` a length of the
+    loops')."""
+    return (np.isfinite(extent_q) & (np.abs(area_q - area) <= 1e-9 * area)
+            & (np.linalg.norm(Cq - C, axis=1) <= 1e-9 * np.asarray(scale)))
 
 
 def _crossings(P, Q, test=None):
@@ -495,11 +501,9 @@ def _holds_other_bones(V, F, X, bones, idx, T, C, extent, area, face_of, vertex_
     out = np.zeros(len(idx), bool)
     if not len(i):
         return out
-    # the same loop: the same area and centroid (as shared_sections_many)
     Cq, eq, aq = section_loops(V, F, q, T[i], 2.0 * extent[i], face_of=face_of,
                                vertex_edge=vertex_edge)
-    same = (np.isfinite(eq) & (np.abs(aq - area[i]) <= 1e-9 * area[i])
-            & (np.linalg.norm(Cq - C[i], axis=1) <= 1e-9 * extent[i]))
+    same = _same_loop(C[i], area[i], Cq, eq, aq, extent[i])
     out[i[same]] = True
     return out
 

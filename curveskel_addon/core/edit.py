@@ -20,6 +20,11 @@ Operators
   joint within half its radius of the other path, beyond the junction's ball; in the polish,
   loops' sides also where they share cross-sections) become their mean chain up to where they
   part; never where that would change the number of cycles.
+* :func:`remove_sharp_turns` (merge) - a chain joint turning by more than 60 degrees on a bone
+  shorter than its radius (a zig-zag); :func:`remove_kinks` - one whose two bones together are
+  shorter than its radius, not next to a junction (the polish's last edit).
+* :func:`bridges_to_rungs` (split + merge) - a bridge between two loops across one web becomes
+  the loops' shared rung across it.
 * :func:`prune_leaves` (remove) - a leaf branch (leaf to junction) shorter than ``factor``
   times the junction's radius lies inside the junction's ball: a bump, not a part.
 * :func:`.centreline.split_long_bones` (split) - bones longer than a length split in equal
@@ -549,7 +554,7 @@ def edit_stage(state, *, prune, simplify, max_joints, diag):
         cap = C["merge_max_diag"] * diag * grow
         tol = np.minimum(tol_scale * state.joints[:, 3], cap)
         apply_edit(state, *merge_chains(state.joints, state.bones, tol,
-                                    C["merge_max_length"] * diag * grow))
+                                        C["merge_max_length"] * diag * grow))
 
     if simplify > 0:
         merge(simplify)
@@ -839,11 +844,9 @@ def _zip_extent(joints, P, Q, frac, shared=None):
         # a path's first joint inside the junction's ball is the junction's (the far end of a
         # short bridge: 3holes' right loop reaches the middle loop's side through one, its far
         # junction 0.51 r from the first, past the half radius, left the right web two strands)
-        r0 = joints[P[0], 3]
-        if len(P) > 1 and np.linalg.norm(XP[1] - XP[0]) < r0:
-            okP[1] = True
-        if len(Q) > 1 and np.linalg.norm(XQ[1] - XQ[0]) < r0:
-            okQ[1] = True
+        for ok, X in ((okP, XP), (okQ, XQ)):
+            if len(X) > 1 and np.linalg.norm(X[1] - X[0]) < joints[P[0], 3]:
+                ok[1] = True
     kP = int(np.argmin(okP)) - 1 if not okP.all() else len(P) - 1
     kQ = int(np.argmin(okQ)) - 1 if not okQ.all() else len(Q) - 1
     return max(kP, 0), max(kQ, 0)

@@ -10,10 +10,11 @@
       -> radii       chains smoothed, radii fitted to the surface with the curve fixed
                      (:func:`.centreline.fit_radii_surface`)
       -> contain     tips trimmed, bones that leave the mesh split at medial points (:mod:`.edit`)
-      -> polish      two loops' sides through one web zipped (:mod:`.edit`), a flap's chain
-                     (an ear) laid into the flap's middle (:mod:`.flaps`), other chain joints
-                     towards the centroids of the mesh's cross-sections through them
-                     (:mod:`.cross_section`), bones shorter than a tenth of their radius
+      -> polish      two loops' sides through one web zipped, a bridge across a web made the
+                     loops' shared rung (:mod:`.edit`), a flap's chain (an ear) laid into the
+                     flap's middle (:mod:`.flaps`), other chain joints towards the centroids of
+                     the mesh's cross-sections through them (:mod:`.cross_section`), bones
+                     shorter than a tenth of their radius and kinks inside their joint's ball
                      merged, radii refitted
       -> Skeleton    every input vertex mapped; the reported E is that of the returned skeleton
 
@@ -398,34 +399,26 @@ class SkeletonRun:
         # short bones merged with the radii the polish had, then again with the fitted ones
         # (the fitted radius can be much larger: the hand kept a bone of 0.057 r)
         short = EDIT_CONSTANTS["short_bone_fraction"]
-        self._merge_short_bones(short)
+        merge = (lambda: merge_short_bones(st.joints, st.bones, short)) if short > 0 else None
+        self._take_merge(merge)
         self._fit_final_radii()
-        changed = self._merge_short_bones(short)
+        # again with the fitted radii, and the kinks inside their joint's ball (both merges:
+        # sigma follows, the radii are fitted once more if either took a joint)
+        changed = self._take_merge(merge)
         if KINKS:
-            changed |= self._remove_kinks()
+            changed |= self._take_merge(lambda: remove_kinks(
+                st.joints, st.bones, EDIT_CONSTANTS["sharp_turn"], inside=st.inside))
         if changed:
             self._fit_final_radii()
         return moved
 
-    def _remove_kinks(self) -> bool:
-        """Sharp turns inside their joint's own ball merged away (:func:`.edit.remove_kinks`,
-        with the fitted radii); whether any was."""
+    def _take_merge(self, merge) -> bool:
+        """A merge of the polish's end (``merge()`` -> joints, bones, bone_map; None: none) into
+        the state, sigma following its bone map, the radii as they are; whether it took a joint."""
         st = self.state
-        J2, B2, bone_map = remove_kinks(st.joints, st.bones, EDIT_CONSTANTS["sharp_turn"],
-                                        inside=st.inside)
-        if len(J2) == len(st.joints):
+        if merge is None:
             return False
-        st.joints, st.bones = J2, B2
-        st.apply_bone_map(bone_map)
-        return True
-
-    def _merge_short_bones(self, fraction) -> bool:
-        """Bones shorter than ``fraction`` of their radius merged (:func:`.edit.merge_short_bones`);
-        whether any was."""
-        st = self.state
-        if not fraction > 0:
-            return False
-        J2, B2, bone_map = merge_short_bones(st.joints, st.bones, fraction)
+        J2, B2, bone_map = merge()
         if len(J2) == len(st.joints):
             return False
         st.joints, st.bones = J2, B2
