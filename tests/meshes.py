@@ -144,7 +144,7 @@ def two_capsules():
 # A curve is returned as (X (k, 3) float, bones (b, 2) int): any form
 # ``curveskel_addon.core.quality.curve_distances`` takes.
 
-__all__ += ["plate_with_holes", "box_bar", "t_beam", "t_beam_centroid_y", "bent_tube", "polyline", "union_curves",
+__all__ += ["plate_with_holes", "board", "board_with_tab", "BOARD", "box_bar", "t_beam", "t_beam_centroid_y", "bent_tube", "polyline", "union_curves",
             "capsule_axis", "torus_axis", "bent_capsule_axis", "star_axes", "box_bar_axis",
             "bent_tube_axis", "plate_hole_rings", "PLATE", "BAR", "BENT_TUBE"]
 
@@ -212,6 +212,30 @@ def box_bar(size=BAR["size"], edge: float = 0.15):
     import manifold3d as m3
 
     return _to_arrays(m3.Manifold.cube(list(size), center=True).refine_to_length(edge))
+
+
+#: A board (plank): size (x, y, z), long axis x, flat in z.
+BOARD = {"size": (6.0, 2.0, 0.4)}
+
+
+def board(size=BOARD["size"], edge: float = 0.15):
+    """A flat box ``size`` centred on the origin (a plank, long axis x, thin along z), edges
+    refined to at most ``edge``. Its curve skeleton is the middle line y = z = 0. Returns
+    (V, F)."""
+    return box_bar(size, edge)
+
+
+def board_with_tab(size=BOARD["size"], tab=(0.8, 0.8), at: float = 0.5, edge: float = 0.12):
+    """:func:`board` with a square tab ``tab`` = (along x, out along y) of the board's
+    thickness on its +y side, centred at x = ``at`` (manifold3d union): a part as wide as it is
+    long, in the board's own sheet. Returns (V, F)."""
+    import manifold3d as m3
+
+    L, W, t = size
+    tx, ty = tab
+    # the tab overlaps the board by 0.1 so the union is one solid
+    part = m3.Manifold.cube([tx, ty + 0.1, t], center=True).translate([at, W / 2 + ty / 2 - 0.05, 0])
+    return _to_arrays((m3.Manifold.cube(list(size), center=True) + part).refine_to_length(edge))
 
 
 def bent_tube(bend=BENT_TUBE["bend"], radius=BENT_TUBE["radius"], angle=BENT_TUBE["angle"],

@@ -42,6 +42,7 @@ from .edit import (EDIT_CONSTANTS, apply_edit, bridges_to_rungs, contain_stage, 
                    remove_kinks, zip_parallel_chains)
 from .errors import CurveSkelError
 from .flaps import lay_flaps
+from .flat_corners import trim_flat_corners
 from .junctions import onto_trunks
 from .mapping import closest_on_bones
 from .mesh_graph import components
@@ -79,6 +80,10 @@ TRUNK_JUNCTIONS = True
 #: a web wider across than along f) share a rung across the web instead
 #: (:func:`.edit.bridges_to_rungs`: the plate with three holes).
 RUNGS = True
+#: ... and a chain's end bent into a corner of a flat part (the Reeb graph's pole in a board's
+#: or a plate's corner) is cut back to where the part's sections stop holding it
+#: (:mod:`.flat_corners`).
+FLAT_CORNERS = True
 #: After the polish, a chain joint turning sharply inside its own ball (its two bones together
 #: shorter than its radius) is merged away (:func:`.edit.remove_kinks`): a knot the silhouette
 #: does not see (the hand's palm, spot's back).
@@ -367,6 +372,10 @@ class SkeletonRun:
         if RUNGS:
             apply_edit(st, *bridges_to_rungs(st.joints, st.bones, self._section,
                                              inside=st.inside))
+        if FLAT_CORNERS:
+            apply_edit(st, *trim_flat_corners(st.V, st.F, st.joints, st.bones, inside=st.inside,
+                                              face_of=st.faces_around,
+                                              vertex_edge=st.vertex_edges))
         before = st.joints.copy()
         laid = np.zeros(0, np.int64)
         if FLAPS:
