@@ -33,9 +33,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "scripts")]
 
 from bench import REFERENCE, load_mesh  # noqa: E402
-from curveskel_addon.core.cross_section import section_loops  # noqa: E402
 from curveskel_addon.core.quality import (SHAPE_FINE_STEP, curve_arrays,  # noqa: E402
-                                          curve_points)
+                                          curve_points, section_offsets)
 
 SHARED_ORDER = ["3holes.off", "rocker-arm.obj", "spot.obj", "elephant.obj", "homer.obj",
                 "fertility.off", "hand.off", "armadillo.obj", "octopus.off", "horse.off"]
@@ -44,23 +43,12 @@ SHARED_ORDER = ["3holes.off", "rocker-arm.obj", "spot.obj", "elephant.obj", "hom
 def reference_centring(V, F, R, RB):
     """(found, offset, centroid_to_ref) of the reference curve (R, RB) in the mesh (V, F):
     the share of its sample points with a section loop, each found point's distance to its
-    section's centroid and each centroid's distance to the reference, both ÷ D."""
+    section's centroid (:func:`core.quality.section_offsets`) and each centroid's distance to
+    the reference, both ÷ D."""
     D = float(np.linalg.norm(np.ptp(V, axis=0)))
-    a, b = R[RB[:, 0]], R[RB[:, 1]]
-    L = np.linalg.norm(b - a, axis=1)
-    keep = L > 0
-    a, b, L = a[keep], b[keep], L[keep]
-    n = np.maximum(1, np.ceil(L / (D / 400))).astype(np.int64)
-    bone = np.repeat(np.arange(len(L)), n)
-    t = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n) + 0.5) / n[bone]
-    P = a[bone] + t[:, None] * (b - a)[bone]
-    T = ((b - a) / L[:, None])[bone]
-    C, extent, _ = section_loops(V, F, P, T, np.full(len(P), 0.25 * D))
-    ok = np.isfinite(extent)
+    found, off, C = section_offsets(V, F, (R, RB), D, centroids=True)
     dense = curve_points(R, RB, SHAPE_FINE_STEP * D)
-    offset = np.linalg.norm(C[ok] - P[ok], axis=1) / D
-    to_ref = cKDTree(dense).query(C[ok])[0] / D
-    return float(ok.mean()), offset, to_ref
+    return found, off, cKDTree(dense).query(C)[0] / D
 
 
 def main(argv=None):

@@ -16,7 +16,10 @@ field's default; booleans as 1/0/true/false). Meshes run in a process pool (``--
 figures), zig-zag, folds, crossings (no target: bone pairs within 0.3 of their radius of
 each other and far apart along the skeleton, per bone), pinches (no target: chain joints whose radius is
 below 0.4 of both neighbours', ``quality.radius_pinches``), length ratio, to_ref, from_ref (all / D, against
-``../shared/reference/<mesh>.json``), mirror (no target: on a mirror-symmetric mesh, how far the
+``../shared/reference/<mesh>.json``), off (no target: the median distance of the skeleton's
+points every D/400 from the centroids of the mesh's cross-sections across their bones, / D,
+``quality.section_offsets``: how centred the curve is, whatever the reference), mirror (no
+target: on a mirror-symmetric mesh, how far the
 skeleton is from its own mirror image, / D, ``quality.mirror_asymmetry``) and the seconds of
 ``skeletonize`` alone. A ``*`` marks a
 value that misses its issue-10 target. The summary counts the meshes meeting each target, the
@@ -107,7 +110,7 @@ def measure(spec: str, overrides: dict, paper: bool, n_samples: int, ref_only: b
     from curveskel_addon.core import SkeletonParams, skeletonize
     from curveskel_addon.core.quality import (
         bbox_diagonal, bone_points, curve_arrays, inside_mesh, mesh_topology, sample_surface,
-        shape_measures, silhouette_sdf, skeleton_topology)
+        section_offsets, shape_measures, silhouette_sdf, skeleton_topology)
 
     name = stem(spec)
     try:
@@ -142,6 +145,7 @@ def measure(spec: str, overrides: dict, paper: bool, n_samples: int, ref_only: b
         topo = bool(st["skeleton_components"] == mt["mesh_components"]
                     and st["skeleton_cycles"] == mt["mesh_genus"])
         sm = shape_measures(V, F, (joints, bones), ref, D=D)
+        sm["centre_offset"] = float(np.median(section_offsets(V, F, (joints[:, :3], bones), D)[1]))
         cg = CGAL.get(name)
         if heldout:  # CGAL's recon: of its skeleton (the reference, or reference/cgal/<mesh>.json
             cg_path = Path(heldout) / "reference" / "cgal" / f"{name}.json"  # if another's)
@@ -167,7 +171,7 @@ def measure(spec: str, overrides: dict, paper: bool, n_samples: int, ref_only: b
 
 COLS = [("mesh", 10), ("J", 4), ("topo", 5), ("inside", 6), ("recon", 7), ("×CGAL", 6),
         ("zigzag", 6), ("folds", 6), ("cross", 5), ("pinch", 5), ("len×", 5), ("to_ref", 6),
-        ("from", 6), ("mirror", 6), ("s", 6)]
+        ("from", 6), ("off", 6), ("mirror", 6), ("s", 6)]
 
 
 def fmt_row(r: dict) -> str:
@@ -184,6 +188,7 @@ def fmt_row(r: dict) -> str:
              f"{r['pinches']:5d}" if r.get("pinches") is not None else "    –",
              f"{r['length_ratio']:4.2f}{star('length')}", f"{r['to_ref_mean']:.4f}{star('to_ref')}",
              f"{r['from_ref_mean']:.4f}{star('from_ref')}",
+             f"{r['centre_offset']:.4f}" if r.get("centre_offset") is not None else "     –",
              f"{r['mirror_asymmetry']:.4f}" if r.get("mirror_asymmetry") is not None else "     –",
              f"{r['seconds']:6.2f}"]
     return " ".join(cells)

@@ -43,7 +43,7 @@ from .quality import _point_segment_distance, skeleton_topology
 __all__ = ["bridges_to_rungs", "chains", "leaf_chains", "merge_chains", "zip_parallel_chains",
            "cycle_bones", "collapse_short_bones", "merge_short_bones", "prune_leaves", "compact",
            "chain_turns", "remove_kinks", "remove_sharp_turns", "edit_stage", "apply_edit",
-           "point_polyline_distance", "contain_stage", "outside_worse", "put_back",
+           "point_polyline_distance", "contain_stage", "outside_worse", "turn_worse", "put_back",
            "EDIT_CONSTANTS"]
 
 #: The edit stage's constants (pipeline defaults), named once.
@@ -618,6 +618,29 @@ def outside_worse(bones, before, inside_test):
         return lambda X: np.zeros(0, np.int64)
     allowed = _outside_per_bone(inside_test, before, bones, k)[0].sum(1)
     return lambda X: np.flatnonzero(_outside_per_bone(inside_test, X, bones, k)[0].sum(1) > allowed)
+
+
+def turn_worse(bones, before, max_turn, watch=None):
+    """``worse(X)`` for :func:`put_back`: the bones at the chain joints (those in ``watch``, a
+    (J,) bool mask; None: all) that turn by more than ``max_turn`` degrees at ``X`` but not at
+    ``before`` (a new zig-zag).
+
+    Why: "no edit may create a fold or a zig-zag" (issue 10). The polish's second pass drew the
+    cat's hip joints beside a junction towards their sections' centroids one by one, to turns of
+    81 and 141 degrees on bones of a fifth of their radius; :func:`remove_kinks` merges such a
+    knot elsewhere but not beside a junction (there it inflated spot's neck radii)."""
+    if not len(bones):
+        return lambda X: np.zeros(0, np.int64)
+    chain, _, _, t0 = chain_turns(before, bones)
+    was = t0 > max_turn
+    if watch is not None:
+        was |= ~np.asarray(watch, bool)[chain]
+
+    def worse(X):
+        c, _, _, t = chain_turns(X, bones)
+        new = c[(t > max_turn) & ~was]
+        return np.flatnonzero(np.isin(bones, new).any(axis=1))
+    return worse
 
 
 def put_back(joints, bones, before, worse, *, rounds: int | None = None) -> np.ndarray:

@@ -11,9 +11,11 @@
                      (:func:`.centreline.fit_radii_surface`)
       -> contain     tips trimmed, bones that leave the mesh split at medial points (:mod:`.edit`)
       -> polish      two loops' sides through one web zipped, a bridge across a web made the
-                     loops' shared rung (:mod:`.edit`), a flap's chain (an ear) laid into the
-                     flap's middle (:mod:`.flaps`), other chain joints towards the centroids of
-                     the mesh's cross-sections through them (:mod:`.cross_section`), bones
+                     loops' shared rung (:mod:`.edit`), a chain's end bent into a flat part's
+                     corner cut back (:mod:`.flat_corners`), a flap's chain (an ear) laid into
+                     the flap's middle (:mod:`.flaps`), other chain joints towards the
+                     centroids of the mesh's cross-sections through them (:mod:`.cross_section`;
+                     two passes, the radii refitted between them), bones
                      shorter than a tenth of their radius and kinks inside their joint's ball
                      merged, radii refitted
       -> Skeleton    every input vertex mapped; the reported E is that of the returned skeleton
@@ -36,9 +38,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .centreline import SURFACE_RADII_ROUNDS, centre_stage, fit_radii_surface, smooth_chains
-from .cross_section import polish_chains, section_loops, shared_sections_many
+from .cross_section import ROUNDS, STEP, polish_chains, section_loops, shared_sections_many
 from .edit import (EDIT_CONSTANTS, apply_edit, bridges_to_rungs, contain_stage, edit_stage,
-                   merge_short_bones, outside_worse, point_polyline_distance, put_back,
+                   merge_short_bones, outside_worse, point_polyline_distance, put_back, turn_worse,
                    remove_kinks, zip_parallel_chains)
 from .errors import CurveSkelError
 from .flaps import lay_flaps
@@ -74,6 +76,18 @@ CROSSING_GUARD = True
 #: Last, chain joints move towards the centroids of the mesh's cross-sections through them
 #: (:mod:`.cross_section`), radii refitted.
 POLISH = True
+#: The polish's passes, (rounds, step) each, the radii refitted to the surface between them (a
+#: section beyond a few radii is not the part's own, so its reach depends on them). One pass of
+#: two half steps left the plate's loops 0.02-0.06 inside its rings (0.0085 D; re-polished
+#: from its final skeleton: 0.0062 after two more rounds, 0.0049 after six); a second pass of
+#: two full steps: 0.0048, every mesh's curve nearer its sections' centres (3holes' median
+#: offset 0.0058 -> 0.0033 D, rocker-arm's 0.0145 -> 0.0097) and armadillo's recon 1.58 ->
+#: 1.23x CGAL. Full steps from the first, they zig-zagged 3holes, rocker-arm and spot: the
+#: first pass's half steps settle the planes. The second's moves that make a new zig-zag beside
+#: a junction are put back (the cat's hip came to turn by 81 and 141 degrees there; elsewhere
+#: the kink merge after the polish takes a knot, and a guard everywhere put back one of homer's
+#: shoulders at 62 degrees and not its mirror image at 59: mirror asymmetry 0.0070 -> 0.0084 D).
+POLISH_PASSES = ((ROUNDS, STEP), (2, 1.0))
 #: ... and junctions move onto the straight line of their trunk (:mod:`.junctions`).
 TRUNK_JUNCTIONS = True
 #: Before it, two loops joined by a bridge across one web (the Reeb graph's link along f through
@@ -88,6 +102,8 @@ FLAT_CORNERS = True
 #: shorter than its radius) is merged away (:func:`.edit.remove_kinks`): a knot the silhouette
 #: does not see (the hand's palm, spot's back).
 KINKS = True
+#: ... in at most this many rounds, the radii refitted after each that merged one.
+KINK_ROUNDS = 3
 #: ... but a chain into a flap (an ear: flat sections) is laid from its junction into the
 #: flap's middle first, and stays there (:mod:`.flaps`).
 FLAPS = True
@@ -356,14 +372,15 @@ class SkeletonRun:
     def _polish(self) -> int:
         """The polish stage: two loops' sides in one part zipped into one strand where they
         share cross-sections (``SHEET_ZIP``), two loops joined by a bridge across one web given
-        a shared rung across it (``RUNGS``), a flap's chain laid into the flap's middle
-        (:mod:`.flaps`), other
-        chain joints and tips towards their cross-sections' centroids
-        (:func:`.cross_section.polish_chains`), junctions onto their trunks
-        (:func:`.junctions.onto_trunks`), joints moved into a new fold or crossing, or taking a
-        bone further out of the mesh, put back, bones shorter than ``short_bone_fraction`` of
-        their radius merged, radii refitted to the surface. Returns the number of chain joints
-        that moved."""
+        a shared rung across it (``RUNGS``), chain ends bent into a flat part's corner cut back
+        (``FLAT_CORNERS``), a flap's chain laid into the flap's middle (:mod:`.flaps`), then in
+        ``POLISH_PASSES`` passes other chain joints and tips towards their cross-sections'
+        centroids (:func:`.cross_section.polish_chains`), junctions onto their trunks
+        (:func:`.junctions.onto_trunks`), joints moved into a new fold or crossing (after the
+        first pass, also a new zig-zag), or taking a bone further out of the mesh, put back;
+        last, bones shorter than ``short_bone_fraction`` of their radius and kinks merged, radii
+        refitted to the surface. Returns the number of chain joints that moved in the last
+        pass."""
         st = self.state
         if SHEET_ZIP:
             apply_edit(st, *zip_parallel_chains(st.joints, st.bones,
@@ -376,16 +393,55 @@ class SkeletonRun:
             apply_edit(st, *trim_flat_corners(st.V, st.F, st.joints, st.bones, inside=st.inside,
                                               face_of=st.faces_around,
                                               vertex_edge=st.vertex_edges))
-        before = st.joints.copy()
         laid = np.zeros(0, np.int64)
         if FLAPS:
+            before = st.joints.copy()
             laid, Y = lay_flaps(st.V, st.F, st.weights, st.joints, st.bones, st.inside,
                                 st.medial[0], face_of=st.faces_around,
                                 vertex_edge=st.vertex_edges)
             st.joints[laid, :3] = Y
+        for k, (rounds, step) in enumerate(POLISH_PASSES):
+            if k == 0 and not FLAPS:
+                before = st.joints.copy()
+            elif k > 0:
+                # the sections' reach is counted in radii: refitted to the surface (one
+                # reweighting) now that the joints sit nearer their sections' centres
+                before = st.joints.copy()
+                st.joints[:, 3], st.bone, st.t = fit_radii_surface(st.V, st.weights, st.joints,
+                                                                   st.bones, rounds=1)
+            moved = self._polish_pass(before, laid, rounds, step, turn_guard=k > 0)
+        # short bones merged with the radii the polish had, then again with the fitted ones
+        # (the fitted radius can be much larger: the hand kept a bone of 0.057 r)
+        short = EDIT_CONSTANTS["short_bone_fraction"]
+        merge = (lambda: merge_short_bones(st.joints, st.bones, short)) if short > 0 else None
+        self._take_merge(merge)
+        self._fit_final_radii()
+        # again with the fitted radii, and the kinks inside their joint's ball (both merges:
+        # sigma follows, the radii are fitted once more if either took a joint)
+        changed = self._take_merge(merge)
+        for _ in range(KINK_ROUNDS if KINKS else 1):
+            # again after the refit: a merge can leave its neighbour a kink, or the refitted
+            # radius make one (the hand's palm: a joint turning by 100 degrees merged, the next
+            # then turned by 96 on bones summing to 0.95 of its refitted radius)
+            kinked = KINKS and self._take_merge(lambda: remove_kinks(
+                st.joints, st.bones, EDIT_CONSTANTS["sharp_turn"], inside=st.inside))
+            if not (changed or kinked):
+                break
+            self._fit_final_radii()
+            changed = False
+            if not kinked:
+                break
+        return moved
+
+    def _polish_pass(self, before, laid, rounds, step, turn_guard=False) -> int:
+        """``rounds`` of :func:`.cross_section.polish_chains` with ``step`` (joints ``laid`` held), junctions
+        onto their trunks, then the moves that made a new fold or crossing, or took a bone
+        further out of the mesh than at ``before`` (with ``turn_guard``, or a new zig-zag), put
+        back. Returns the joints that moved."""
+        st = self.state
         X, moved = polish_chains(st.V, st.F, st.joints, st.bones, st.inside,
                                  face_of=st.faces_around, vertex_edge=st.vertex_edges,
-                                 fixed=laid)
+                                 fixed=laid, rounds=rounds, step=step)
         if TRUNK_JUNCTIONS:
             # (a junction whose trunk line leaves the mesh stays where it was)
             Y = onto_trunks(X, st.joints[:, 3], st.bones)
@@ -402,23 +458,17 @@ class SkeletonRun:
             guards.append(fold_worse(st.bones, before, st.diag))
         if INSIDE_GUARD:
             guards.append(outside_worse(st.bones, before, st.inside))
+        if turn_guard:
+            # beside a junction: the kink merge after the polish leaves those alone
+            deg = np.bincount(st.bones.ravel(), minlength=len(st.joints))
+            hub = deg[st.bones] >= 3
+            beside = np.zeros(len(st.joints), bool)
+            beside[st.bones[:, 0][hub[:, 1]]] = True
+            beside[st.bones[:, 1][hub[:, 0]]] = True
+            guards.append(turn_worse(st.bones, before, EDIT_CONSTANTS["sharp_turn"], beside))
         if guards:
             put_back(st.joints, st.bones, before,
                      lambda X: np.unique(np.concatenate([g(X) for g in guards])))
-        # short bones merged with the radii the polish had, then again with the fitted ones
-        # (the fitted radius can be much larger: the hand kept a bone of 0.057 r)
-        short = EDIT_CONSTANTS["short_bone_fraction"]
-        merge = (lambda: merge_short_bones(st.joints, st.bones, short)) if short > 0 else None
-        self._take_merge(merge)
-        self._fit_final_radii()
-        # again with the fitted radii, and the kinks inside their joint's ball (both merges:
-        # sigma follows, the radii are fitted once more if either took a joint)
-        changed = self._take_merge(merge)
-        if KINKS:
-            changed |= self._take_merge(lambda: remove_kinks(
-                st.joints, st.bones, EDIT_CONSTANTS["sharp_turn"], inside=st.inside))
-        if changed:
-            self._fit_final_radii()
         return moved
 
     def _take_merge(self, merge) -> bool:

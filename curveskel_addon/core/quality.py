@@ -1570,6 +1570,65 @@ def mirror_asymmetry(V, skeleton, D) -> float | None:
     return 0.5 * (d["to_ref_mean"] + d["from_ref_mean"])
 
 
+def section_offsets(V, F, skeleton, D=None, *, step=SHAPE_COARSE_STEP, reach=0.25,
+                    centroids=False):
+    """How far a curve runs from the centres of the mesh's cross-sections across it, / D.
+
+    Points every ``step`` D along each bone are cut by the plane across the bone (normal along
+    it); the section loop round each point (within ``reach`` D) has an area centroid, and the
+    point's offset is its distance to that centroid. Why: issue 10 asks for joints held to the
+    centre of their cross-section, and to_ref cannot say it where the reference itself runs
+    off-centre (CGAL's loops on 3holes lie 0.03 D towards the holes): a curve brought nearer
+    the centres scored worse there while the picture got better. Junctions and tips, where a
+    plane across one bone cuts the body or a cap, read high: the median is the measure.
+
+    Parameters
+    ----------
+    V : (n, 3) float, F : (m, 3) int
+    skeleton : any form of :func:`curve_arrays`
+    D : float, optional
+        The normalising length (default: the bounding-box diagonal).
+
+    Returns
+    -------
+    found : float
+        The share of the points with a closed section loop round them.
+    offsets : (k,) float
+        Each found point's distance to its section's centroid, / D.
+    C : (k, 3) float
+        With ``centroids``: those centroids.
+
+    Examples
+    --------
+    A straight bar's axis is its sections' centre; moved 0.1 off it, the offset is 0.1 / D:
+
+    >>> from tests.meshes import box_bar                          # doctest: +SKIP
+    >>> V, F = box_bar()                                          # doctest: +SKIP
+    >>> found, off = section_offsets(V, F, ([[-3, 0.1, 0], [3, 0.1, 0]], [[0, 1]]))  # doctest: +SKIP
+    """
+    from .cross_section import section_loops
+
+    V = np.asarray(V, np.float64)
+    if D is None:
+        D = bbox_diagonal(V, F)
+    X, bones = curve_arrays(skeleton)
+    a, b = X[bones[:, 0]], X[bones[:, 1]]
+    L = np.linalg.norm(b - a, axis=1)
+    keep = L > 0
+    a, b, L = a[keep], b[keep], L[keep]
+    if not len(L):
+        return (0.0, np.zeros(0)) + ((np.zeros((0, 3)),) if centroids else ())
+    n = np.maximum(1, np.ceil(L / (step * D))).astype(np.int64)
+    bone = np.repeat(np.arange(len(L)), n)
+    t = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n) + 0.5) / n[bone]
+    P = a[bone] + t[:, None] * (b - a)[bone]
+    T = ((b - a) / L[:, None])[bone]
+    C, extent, _ = section_loops(V, F, P, T, np.full(len(P), reach * D))
+    ok = np.isfinite(extent)
+    out = (float(ok.mean()), np.linalg.norm(C[ok] - P[ok], axis=1) / D)
+    return out + ((C[ok],) if centroids else ())
+
+
 def shape_measures(V, F, skeleton, reference=None, *, D=None) -> dict:
     """All shape measures of issue 10 of a skeleton of mesh (V, F), against a reference curve.
 

@@ -9,7 +9,7 @@ import pytest
 from curveskel_addon.core.edit import (bridges_to_rungs, chain_turns, chains, collapse_short_bones,
                                        cycle_bones, remove_kinks,
                                        merge_chains, merge_short_bones, outside_worse, prune_leaves,
-                                       put_back, remove_sharp_turns, zip_parallel_chains)
+                                       put_back, remove_sharp_turns, turn_worse, zip_parallel_chains)
 from curveskel_addon.core.quality import crossing_pairs
 
 
@@ -231,6 +231,43 @@ def test_the_inside_guard_puts_back_a_bone_moved_across_a_hole():
     J[1, 1] = 0.3
     assert not put_back(J, _path(4), before, outside_worse(_path(4), before, _outside_hole)).any()
     assert J[1, 1] == 0.3
+
+
+# -- put_back with turn_worse (the polish's zig-zag guard) -------------------------------------------
+def test_the_turn_guard_puts_back_a_joint_that_makes_a_new_zigzag():
+    # a straight chain; joint 2 moved 1.0 sideways on bones of 1 turns by 90 degrees (its
+    # neighbours by 45), joint 4 moved 0.2 by at most 23: joint 2 goes back (with its bones'
+    # other joints, which did not move), joint 4 stays
+    before = _joints([(0, 0), (1, 0), (2, 0), (3, 0), (4, 0), (5, 0)])
+    J = before.copy()
+    J[2, 1] = 1.0
+    J[4, 1] = 0.2
+    c, _, _, t = chain_turns(J, _path(6))
+    assert t[c == 2][0] == pytest.approx(90.0) and (t[c != 2] < 60).all()
+    back = put_back(J, _path(6), before, turn_worse(_path(6), before, 60.0))
+    assert back[2] and not back[4] and not back[5]
+    np.testing.assert_array_equal(J[:4], before[:4])
+    assert J[4, 1] == 0.2
+
+
+def test_the_turn_guard_watches_only_the_joints_it_is_given():
+    before = _joints([(0, 0), (1, 0), (2, 0), (3, 0), (4, 0), (5, 0)])
+    J = before.copy()
+    J[2, 1] = 1.0                                         # a new 90-degree turn at joint 2
+    watch = np.zeros(6, bool)
+    watch[3] = True                                       # ... not watched: left
+    assert not put_back(J, _path(6), before, turn_worse(_path(6), before, 60.0, watch)).any()
+    watch[2] = True
+    assert put_back(J, _path(6), before, turn_worse(_path(6), before, 60.0, watch))[2]
+
+
+def test_the_turn_guard_leaves_a_turn_that_was_there():
+    # a right-angled corner at joint 2 before and after (moved along the chain): not new
+    before = _joints([(0, 0), (1, 0), (2, 0), (2, 1), (2, 2)])
+    J = before.copy()
+    J[3, 1] = 1.2
+    assert not put_back(J, _path(5), before, turn_worse(_path(5), before, 60.0)).any()
+    assert J[3, 1] == 1.2
 
 
 # -- prune_leaves ------------------------------------------------------------------------------------

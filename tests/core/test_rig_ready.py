@@ -352,16 +352,10 @@ def test_bent_tube_is_one_smooth_chain():
 
 # -- every procedural shape against its analytic curve --------------------------------------------
 #: measured 2026-12-02 when written (to_ref_mean / from_ref_mean, / D); xfail where > 0.005
-_CURVE_XFAIL = {
-    "plate_with_holes": "measured 2026-12-03 (thirteenth session): to_ref 0.0085 D, from_ref 0.0075 D "
-                        "(0.0102 / 0.0084 before the pole's corner tail went, flat_corners; 0.018 / "
-                        "0.014 before the rungs): three loops round the holes sharing a rung across "
-                        "each web. Of to_ref, 0.0016 is the far end's tail along the end band into "
-                        "the far pole's corner (its sections are the band's, 0.5 x 0.4, not flat), "
-                        "0.0024 the right web (x 0.5-1.5: the rung's top junction at y = 0.2 where "
-                        "the rings meet at 0.42), and along the bands the joints sit 0.02-0.06 inside "
-                        "the rings (the polish steps half-way to the sections' centroids, twice: a "
-                        "full step gives 0.0061 / 0.0051 but zig-zags 3holes, rocker-arm and spot)",
+_CURVE_XFAIL: dict[str, str] = {
+    # the plate with three holes, xfail from the first session to the thirteenth (0.018 / 0.014 D
+    # before the rungs, 0.0102 / 0.0084 before the pole's corner tail went): 0.0048 / 0.0040
+    # with the polish's second pass
 }
 
 
@@ -633,12 +627,13 @@ def test_spot_and_its_mirror_triangulation_keep_the_same_limbs(shared_meshes):
     assert tips[0] == tips[1] == 6, tips
 
 
-@pytest.mark.parametrize("name,tips", [("homer.obj", 6), ("armadillo.obj", 10)])
+@pytest.mark.parametrize("name,tips", [("homer.obj", 6), ("armadillo.obj", 9)])
 def test_short_thin_branches_at_a_junction_stay_noise(shared_meshes, name, tips):
     """The other side of spot's legs: homer's fingers and armadillo's claws are as short along f
     (their caps under half a spacing, their branches apart half a spacing lower) but cover
     1.1-1.9 s^2 of surface there, under reeb.CAP_AREA's 3: still noise, the tips today's (with
-    any apart branch kept, homer 7 tips and 41 joints, armadillo 12 and 64)."""
+    any apart branch kept, homer 7 tips and 41 joints, armadillo 12 and 64; armadillo had 10
+    until the polish's second pass, one a fork 0.006 D long at a hand, now merged)."""
     from curveskel_addon.core.mesh_io import read_mesh
     V, F = read_mesh(shared_meshes / name)
     sk = skeletonize(V, F, SkeletonParams())

@@ -14,9 +14,9 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 
 from curveskel_addon.core.quality import (
     bbox_diagonal, close_bone_pairs, curve_arrays, curve_distances, curve_measures, curve_points,
-    fold_pairs, segment_points, segment_segment_distance, shape_measures, turn_angles)
+    fold_pairs, section_offsets, segment_points, segment_segment_distance, shape_measures, turn_angles)
 from curveskel_addon.core.skeleton import Skeleton
-from tests.meshes import capsule
+from tests.meshes import box_bar, capsule
 
 SHARED = Path(__file__).resolve().parents[3] / "shared"
 
@@ -437,3 +437,22 @@ def test_reference_centring_measures_how_far_a_curve_runs_from_its_sections_cent
     assert found == 1.0
     np.testing.assert_allclose(off * D, 0.3, atol=0.01)
     np.testing.assert_allclose(to_ref * D, 0.3, atol=0.01)
+
+
+# -- section_offsets (how centred a curve is in the mesh's cross-sections) -------------------------
+def test_section_offsets_of_a_bar_axis_and_of_a_line_beside_it():
+    V, F = box_bar()                        # 8 x 1 x 1 along x
+    D = bbox_diagonal(V, F)
+    found, off = section_offsets(V, F, ([[-3.0, 0, 0], [3.0, 0, 0]], [[0, 1]]), D)
+    assert found == 1.0 and np.allclose(off, 0.0, atol=1e-12)
+    # moved 0.1 along y and 0.2 along z: every section's centroid is still the axis
+    found, off = section_offsets(V, F, ([[-3.0, 0.1, 0.2], [3.0, 0.1, 0.2]], [[0, 1]]), D)
+    assert found == 1.0 and np.allclose(off * D, np.hypot(0.1, 0.2))
+    # points every D/400: 6 / (D/400) of them
+    assert len(off) == int(np.ceil(6.0 / (D / 400)))
+
+
+def test_section_offsets_outside_the_mesh_find_nothing():
+    V, F = box_bar()
+    found, off = section_offsets(V, F, ([[-3.0, 5, 0], [3.0, 5, 0]], [[0, 1]]))
+    assert found == 0.0 and len(off) == 0
