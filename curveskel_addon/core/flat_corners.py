@@ -96,18 +96,26 @@ def flat_ends(V, F, joints, bones, *, face_of=None, vertex_edge=None):
             tails.append(_Tail(J[p], p, b, two=len(ends) == 2, loop=bool(loop[p[-1]])))
     size = float(np.linalg.norm(np.ptp(V, axis=0))) if len(V) else 0.0
 
-    def shapes(X, T):
+    def shapes(X, T, near=None):
         # a held section reaches at least dist / HOLD, and may reach across the whole mesh (a
-        # section along a board's end runs the board's length)
-        return section_shapes(V, F, X, T, np.full(len(X), size), face_of=face_of,
-                              vertex_edge=vertex_edge)[3:]
+        # section along a board's end runs the board's length): looked for near first (a
+        # limb's section is found there, for a fraction of the cost), then across the mesh
+        reach = np.full(len(X), size) if near is None else np.minimum(near, size)
+        w, th, thin = section_shapes(V, F, X, T, reach, face_of=face_of,
+                                     vertex_edge=vertex_edge)[3:]
+        if near is not None:
+            again = np.flatnonzero(w == 0)
+            if len(again):
+                w[again], th[again], thin[again] = shapes(X[again], T[again])
+        return w, th, thin
 
     # walk in from every tip at once: one batch of sections per step
     active = list(tails)
     while active:
         X = np.array([t.point()[:3] for t in active])
         T = np.array([t.direction() for t in active])
-        for t, *shape in zip(active, *shapes(X, T)):
+        near = np.array([4.0 * (t.dist() + t.radius()) for t in active])
+        for t, *shape in zip(active, *shapes(X, T, near)):
             t.record(*shape)
         active = [t for t in active if t.going() and t.advance()]
     # a whole leaf's sheet goes on into its junction's other bones: their middles' sections
@@ -144,8 +152,8 @@ class _Tail:
     def _at(self, k):
         return k // 2, 0.5 if k % 2 == 0 else 1.0
 
-    def point(self, k=None):
-        i, f = self._at(self.k if k is None else k)
+    def point(self):
+        i, f = self._at(self.k)
         return self.P[i] + f * (self.P[i + 1] - self.P[i])
 
     def direction(self):
@@ -154,8 +162,14 @@ class _Tail:
         n = np.linalg.norm(t)
         return t / n if n > 0 else t
 
+    def dist(self):
+        return float(np.linalg.norm(self.point()[:3] - self.P[0, :3]))
+
+    def radius(self):
+        return abs(float(self.point()[3]))
+
     def record(self, w, th, thin):
-        dist = float(np.linalg.norm(self.point()[:3] - self.P[0, :3]))
+        dist = self.dist()
         if w > 0 and dist < th:
             held = None                                   # the tip's own cap: no say
         else:
