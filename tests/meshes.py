@@ -144,7 +144,8 @@ def two_capsules():
 # A curve is returned as (X (k, 3) float, bones (b, 2) int): any form
 # ``curveskel_addon.core.quality.curve_distances`` takes.
 
-__all__ += ["plate_with_holes", "board", "board_with_tab", "BOARD", "box_bar", "t_beam", "t_beam_centroid_y", "bent_tube", "polyline", "union_curves",
+__all__ += ["board", "board_with_tab", "BOARD"]
+__all__ += ["plate_with_holes", "box_bar", "t_beam", "t_beam_centroid_y", "bent_tube", "polyline", "union_curves",
             "capsule_axis", "torus_axis", "bent_capsule_axis", "star_axes", "box_bar_axis",
             "bent_tube_axis", "plate_hole_rings", "PLATE", "BAR", "BENT_TUBE"]
 
@@ -234,7 +235,8 @@ def board_with_tab(size=BOARD["size"], tab=(0.8, 0.8), at: float = 0.5, edge: fl
     L, W, t = size
     tx, ty = tab
     # the tab overlaps the board by 0.1 so the union is one solid
-    part = m3.Manifold.cube([tx, ty + 0.1, t], center=True).translate([at, W / 2 + ty / 2 - 0.05, 0])
+    part = m3.Manifold.cube([tx, ty + 0.1, t], center=True)
+    part = part.translate([at, W / 2 + ty / 2 - 0.05, 0])
     return _to_arrays((m3.Manifold.cube(list(size), center=True) + part).refine_to_length(edge))
 
 

@@ -38,7 +38,8 @@ from .mesh_graph import faces_around
 from .quality import orthonormal_frame
 from .rows import row_cross, take_rows
 
-__all__ = ["section_centroids", "section_loops", "section_shapes", "shared_sections", "shared_sections_many",
+__all__ = ["section_centroids", "section_loops", "section_shapes", "shared_sections",
+           "shared_sections_many",
            "vertex_edges", "polish_chains", "STEP", "ROUNDS", "REACH", "FADE", "TIP_REACH", "SMOOTH",
            "LEAF_STEP", "OWN_REACH", "OWN_RATIO"]
 

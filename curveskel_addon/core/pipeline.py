@@ -81,7 +81,7 @@ POLISH = True
 #: two half steps left the plate's loops 0.02-0.06 inside its rings (0.0085 D; re-polished
 #: from its final skeleton: 0.0062 after two more rounds, 0.0049 after six); a second pass of
 #: two full steps: 0.0048, every mesh's curve nearer its sections' centres (3holes' median
-#: offset 0.0058 -> 0.0033 D, rocker-arm's 0.0145 -> 0.0097) and armadillo's recon 1.58 ->
+#: offset 0.0058 -> 0.0033 D, rocker-arm's 0.0145 -> 0.0070) and armadillo's recon 1.58 ->
 #: 1.23x CGAL. Full steps from the first, they zig-zagged 3holes, rocker-arm and spot: the
 #: first pass's half steps settle the planes. The second's moves that make a new zig-zag beside
 #: a junction are put back (the cat's hip came to turn by 81 and 141 degrees there; elsewhere
@@ -434,8 +434,8 @@ class SkeletonRun:
         return moved
 
     def _polish_pass(self, before, laid, rounds, step, turn_guard=False) -> int:
-        """``rounds`` of :func:`.cross_section.polish_chains` with ``step`` (joints ``laid`` held), junctions
-        onto their trunks, then the moves that made a new fold or crossing, or took a bone
+        """``rounds`` of :func:`.cross_section.polish_chains` with ``step`` (joints ``laid``
+        held), junctions onto their trunks, then the moves that made a new fold or crossing, or took a bone
         further out of the mesh than at ``before`` (with ``turn_guard``, or a new zig-zag), put
         back. Returns the joints that moved."""
         st = self.state

@@ -1604,7 +1604,8 @@ def section_offsets(V, F, skeleton, D=None, *, step=SHAPE_COARSE_STEP, reach=0.2
 
     >>> from tests.meshes import box_bar                          # doctest: +SKIP
     >>> V, F = box_bar()                                          # doctest: +SKIP
-    >>> found, off = section_offsets(V, F, ([[-3, 0.1, 0], [3, 0.1, 0]], [[0, 1]]))  # doctest: +SKIP
+    >>> found, off = section_offsets(V, F, ([[-3, 0.1, 0], [3, 0.1, 0]], [[0, 1]]))
+    ... # doctest: +SKIP
     """
     from .cross_section import section_loops
 

@@ -9,7 +9,8 @@ import pytest
 from curveskel_addon.core.edit import (bridges_to_rungs, chain_turns, chains, collapse_short_bones,
                                        cycle_bones, remove_kinks,
                                        merge_chains, merge_short_bones, outside_worse, prune_leaves,
-                                       put_back, remove_sharp_turns, turn_worse, zip_parallel_chains)
+                                       put_back, remove_sharp_turns, turn_worse,
+                                       zip_parallel_chains)
 from curveskel_addon.core.quality import crossing_pairs
 
 
@@ -233,7 +234,7 @@ def test_the_inside_guard_puts_back_a_bone_moved_across_a_hole():
     assert J[1, 1] == 0.3
 
 
-# -- put_back with turn_worse (the polish's zig-zag guard) -------------------------------------------
+# -- put_back with turn_worse (the polish's zig-zag guard) ---------------------------------------
 def test_the_turn_guard_puts_back_a_joint_that_makes_a_new_zigzag():
     # a straight chain; joint 2 moved 1.0 sideways on bones of 1 turns by 90 degrees (its
     # neighbours by 45), joint 4 moved 0.2 by at most 23: joint 2 goes back (with its bones'

@@ -32,7 +32,8 @@ def test_section_shape_of_a_round_tube_is_square_root_3_radii_both_ways():
     V, F = capsule()                       # radius 1 along z
     *_, w, t, _ = section_shapes(V, F, [[0.0, 0, 3.0]], [[0.0, 0, 1]], [3.0])
     # a 32-gon's second moments: within a percent of the disc's sqrt(3) r
-    assert w[0] == pytest.approx(np.sqrt(3), rel=0.02) and t[0] == pytest.approx(np.sqrt(3), rel=0.02)
+    assert w[0] == pytest.approx(np.sqrt(3), rel=0.02)
+    assert t[0] == pytest.approx(np.sqrt(3), rel=0.02)
     assert w[0] / t[0] == pytest.approx(1.0, abs=1e-6)
 
 

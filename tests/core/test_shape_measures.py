@@ -14,7 +14,8 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 
 from curveskel_addon.core.quality import (
     bbox_diagonal, close_bone_pairs, curve_arrays, curve_distances, curve_measures, curve_points,
-    fold_pairs, section_offsets, segment_points, segment_segment_distance, shape_measures, turn_angles)
+    fold_pairs, section_offsets, segment_points, segment_segment_distance, shape_measures,
+    turn_angles)
 from curveskel_addon.core.skeleton import Skeleton
 from tests.meshes import box_bar, capsule
 
