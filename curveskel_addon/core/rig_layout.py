@@ -619,6 +619,23 @@ def _chain_distance(A, B):
     return float(np.mean(np.linalg.norm(_resample(A, m) - _resample(B, m), axis=1)))
 
 
+#: Two limbs pair only if the longer is at most this many times the shorter.
+LIMB_RATIO = 1.5
+
+
+def _tip_distance(A, B):
+    """Mean distance between two polylines from their last points back over the shorter one's
+    length (points at equal arc lengths from the tips)."""
+    m = 16
+    A, B = np.asarray(A, np.float64)[::-1], np.asarray(B, np.float64)[::-1]
+    sa = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(A, axis=0), axis=1))]
+    sb = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(B, axis=0), axis=1))]
+    u = np.linspace(0.0, min(sa[-1], sb[-1]), m + 1)
+    PA = np.stack([np.interp(u, sa, A[:, k]) for k in range(3)], 1)
+    PB = np.stack([np.interp(u, sb, B[:, k]) for k in range(3)], 1)
+    return float(np.mean(np.linalg.norm(PA - PB, axis=1)))
+
+
 def named_rig(lay: RigLayout, plane: MirrorPlane | None = None, *, pair_tol: float = 0.1,
               central_tol: float = 0.05, up=(0.0, 0.0, 1.0)) -> Rig:
     """The bones of ``lay`` with readable names, mirrored exactly about ``plane`` when given.
@@ -629,7 +646,8 @@ def named_rig(lay: RigLayout, plane: MirrorPlane | None = None, *, pair_tol: flo
     - A *chain* is a run of bones between junctions (``RigLayout.branch``). Position along a
       chain from its root end: ``.01``, ``.02``, ...
     - With a plane: two chains on opposite sides whose mirror images match (mean distance below
-      ``pair_tol`` of the chain's length, plus a few percent of the skeleton's size) are a pair,
+      ``pair_tol`` of the chain's length, plus a few percent of the skeleton's size; two chains
+      ending in tips, lengths within ``LIMB_RATIO``, also compared from their tips) are a pair,
       ``limbK.L.PP`` and ``limbK.R.PP`` (``.L`` on the plane normal's positive side; Blender flips
       ``.L``/``.R`` before a ``.NN`` number, so X-Axis Mirror and pose flipping find the pair).
       Unpaired chains whose joints all lie within ``central_tol`` of the diagonal from the plane
@@ -678,6 +696,9 @@ def named_rig(lay: RigLayout, plane: MirrorPlane | None = None, *, pair_tol: flo
     for c in order:
         chain_of[chains[c]] = c
     parent_chain = {c: int(chain_of[lay.parent[chains[c][0]]]) for c in order}   # -1: under a root
+    has_child = np.zeros(R0, bool)
+    has_child[lay.parent[lay.parent >= 0]] = True
+    limb_end = {c: not has_child[chains[c][-1]] for c in order}     # the chain ends in a tip
 
     kind = {c: "chain" for c in order}
     partner: dict[int, int] = {}
@@ -697,6 +718,12 @@ def named_rig(lay: RigLayout, plane: MirrorPlane | None = None, *, pair_tol: flo
             kin = pa == pb or partner.get(pa) == pb or (near_plane[pa] and near_plane[pb]
                                                         and pa not in partner and pb not in partner)
             cost = _chain_distance(pts[a], plane.reflect(pts[b]))
+            if limb_end[a] and limb_end[b] and (max(length[a], length[b])
+                                                <= LIMB_RATIO * min(length[a], length[b])):
+                # two limbs also from their tips: where they branch off may differ left and
+                # right (a T whose head chain meets one arm has that arm's junction out along
+                # it, 0.7 from where the other arm's is)
+                cost = min(cost, _tip_distance(pts[a], plane.reflect(pts[b])))
             limit = (pair_tol * max(length[a], length[b]) + 0.02 * diag) * (1.0 if kin else 0.75)
             # the chains must lie mostly off the plane (else both are central)
             if cost < limit and min(abs(ma), abs(mb)) > 0.5 * cost:

@@ -286,3 +286,31 @@ def test_named_rig_without_plane_keeps_the_layout():
     assert rig.n_bones == lay.n_bones and np.allclose(rig.heads, lay.heads) and np.allclose(rig.tails, lay.tails)
     assert all(READABLE.match(n) and ".L" not in n and ".R" not in n for n in rig.names)
     assert rig.names[0] == "root" and np.array_equal(rig.parent, lay.parent)
+
+
+def test_two_limbs_pair_by_their_tips_when_their_junctions_differ():
+    """A T whose head chain meets its left arm 0.7 out from the middle (the skeleton of a shape
+    symmetric across two planes, drawn from a pole in one arm): the left arm branches off at
+    x = -0.7, the right one at the middle. Compared at equal fractions of their lengths the arms
+    lie 0.35 apart on average, over the limit for chains whose parents differ; from their tips
+    they are each other's mirror image, and pair."""
+    X, B = [], []
+
+    def chain(start, points):
+        prev = start
+        for p in points:
+            X.append(p)
+            B.append((prev, len(X) - 1))
+            prev = len(X) - 1
+        return prev
+
+    X.append([0.0, 0, 0])                                                    # 0: bottom
+    mid = chain(0, [[0, 0, 1.2], [0, 0, 2.4], [0, 0, 3.5]])                  # the body
+    chain(mid, [[0.75, 0, 3.5], [1.5, 0, 3.5], [2.25, 0, 3.5], [3.0, 0, 3.5]])    # right arm
+    left = chain(mid, [[-0.35, 0, 3.5], [-0.7, 0, 3.5]])                      # to the junction
+    chain(left, [[-1.27, 0, 3.5], [-1.85, 0, 3.5], [-2.42, 0, 3.5], [-3.0, 0, 3.5]])
+    chain(left, [[-0.4, 0, 4.2], [0, 0, 4.8], [0, 0, 5.2]])                   # head chain
+    J = np.c_[np.array(X, float), np.full(len(X), 0.35)]
+    rig = named_rig(rig_layout(J, np.array(B), root=0), MirrorPlane(np.array([1.0, 0.0, 0.0]), 0.0, 0.0))
+    arms = [n for n in rig.names if ".L." in n or ".R." in n]
+    assert rig.meta["pairs"] == 1 and len(arms) == 8, rig.names
