@@ -419,18 +419,21 @@ class SkeletonRun:
         # again with the fitted radii, and the kinks inside their joint's ball (both merges:
         # sigma follows, the radii are fitted once more if either took a joint)
         changed = self._take_merge(merge)
-        for _ in range(KINK_ROUNDS if KINKS else 1):
-            # again after the refit: a merge can leave its neighbour a kink, or the refitted
+        for k in range(KINK_ROUNDS if KINKS else 0):
+            # again after a refit: a merge can leave its neighbour a kink, or the refitted
             # radius make one (the hand's palm: a joint turning by 100 degrees merged, the next
-            # then turned by 96 on bones summing to 0.95 of its refitted radius)
-            kinked = KINKS and self._take_merge(lambda: remove_kinks(
-                st.joints, st.bones, EDIT_CONSTANTS["sharp_turn"], inside=st.inside))
-            if not (changed or kinked):
+            # then turned by 96 on bones summing to 0.95 of its refitted radius); between the
+            # rounds the radii by the nearest-bone fit alone (the silhouette's, 10x its cost,
+            # once after)
+            if not self._take_merge(lambda: remove_kinks(
+                    st.joints, st.bones, EDIT_CONSTANTS["sharp_turn"], inside=st.inside)):
                 break
+            changed = True
+            if k + 1 < KINK_ROUNDS:
+                st.joints[:, 3], st.bone, st.t = fit_radii_surface(st.V, st.weights, st.joints,
+                                                                   st.bones, rounds=1)
+        if changed:
             self._fit_final_radii()
-            changed = False
-            if not kinked:
-                break
         return moved
 
     def _polish_pass(self, before, laid, rounds, step, turn_guard=False) -> int:
