@@ -44,6 +44,7 @@ __all__ = ["bridges_to_rungs", "chains", "leaf_chains", "merge_chains", "zip_par
            "cycle_bones", "collapse_short_bones", "merge_short_bones", "prune_leaves", "compact",
            "chain_turns", "remove_kinks", "remove_sharp_turns", "edit_stage", "apply_edit",
            "point_polyline_distance", "contain_stage", "outside_worse", "turn_worse", "put_back",
+           "beside_junctions",
            "EDIT_CONSTANTS"]
 
 #: The edit stage's constants (pipeline defaults), named once.
@@ -504,10 +505,7 @@ def remove_kinks(joints, bones, max_turn=60.0, inside=None):
     """
     joints = np.asarray(joints, np.float64)
     bones = np.asarray(bones, np.int64).reshape(-1, 2)
-    span = np.abs(joints[:, 3]).copy()
-    hub = np.bincount(bones.ravel(), minlength=len(joints)) >= 3
-    span[bones[hub[bones[:, 1]], 0]] = 0.0
-    span[bones[hub[bones[:, 0]], 1]] = 0.0
+    span = np.where(beside_junctions(len(joints), bones), 0.0, np.abs(joints[:, 3]))
     return remove_sharp_turns(joints, bones, np.full(len(joints), np.inf), max_turn,
                               inside=inside, span=span)
 
@@ -618,6 +616,22 @@ def outside_worse(bones, before, inside_test):
         return lambda X: np.zeros(0, np.int64)
     allowed = _outside_per_bone(inside_test, before, bones, k)[0].sum(1)
     return lambda X: np.flatnonzero(_outside_per_bone(inside_test, X, bones, k)[0].sum(1) > allowed)
+
+
+def beside_junctions(n_joints, bones):
+    """(J,) bool: the joints joined by a bone to a junction (degree >= 3).
+
+    Examples
+    --------
+    >>> beside_junctions(5, np.array([[0, 1], [1, 2], [1, 3], [3, 4]])).tolist()
+    [True, False, True, True, False]
+    """
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    hub = np.bincount(bones.ravel(), minlength=n_joints) >= 3
+    out = np.zeros(n_joints, bool)
+    out[bones[hub[bones[:, 1]], 0]] = True
+    out[bones[hub[bones[:, 0]], 1]] = True
+    return out
 
 
 def turn_worse(bones, before, max_turn, watch=None):

@@ -39,7 +39,8 @@ from scipy.spatial import cKDTree
 
 from .centreline import SURFACE_RADII_ROUNDS, centre_stage, fit_radii_surface, smooth_chains
 from .cross_section import ROUNDS, STEP, polish_chains, section_loops, shared_sections_many
-from .edit import (EDIT_CONSTANTS, apply_edit, bridges_to_rungs, contain_stage, edit_stage,
+from .edit import (EDIT_CONSTANTS, apply_edit, beside_junctions, bridges_to_rungs, contain_stage,
+                   edit_stage,
                    merge_short_bones, outside_worse, point_polyline_distance, put_back, turn_worse,
                    remove_kinks, zip_parallel_chains)
 from .errors import CurveSkelError
@@ -393,17 +394,15 @@ class SkeletonRun:
             apply_edit(st, *trim_flat_corners(st.V, st.F, st.joints, st.bones, inside=st.inside,
                                               face_of=st.faces_around,
                                               vertex_edge=st.vertex_edges))
+        before = st.joints.copy()
         laid = np.zeros(0, np.int64)
         if FLAPS:
-            before = st.joints.copy()
             laid, Y = lay_flaps(st.V, st.F, st.weights, st.joints, st.bones, st.inside,
                                 st.medial[0], face_of=st.faces_around,
                                 vertex_edge=st.vertex_edges)
             st.joints[laid, :3] = Y
         for k, (rounds, step) in enumerate(POLISH_PASSES):
-            if k == 0 and not FLAPS:
-                before = st.joints.copy()
-            elif k > 0:
+            if k > 0:
                 # the sections' reach is counted in radii: refitted to the surface (one
                 # reweighting) now that the joints sit nearer their sections' centres
                 before = st.joints.copy()
@@ -463,12 +462,8 @@ class SkeletonRun:
             guards.append(outside_worse(st.bones, before, st.inside))
         if turn_guard:
             # beside a junction: the kink merge after the polish leaves those alone
-            deg = np.bincount(st.bones.ravel(), minlength=len(st.joints))
-            hub = deg[st.bones] >= 3
-            beside = np.zeros(len(st.joints), bool)
-            beside[st.bones[:, 0][hub[:, 1]]] = True
-            beside[st.bones[:, 1][hub[:, 0]]] = True
-            guards.append(turn_worse(st.bones, before, EDIT_CONSTANTS["sharp_turn"], beside))
+            guards.append(turn_worse(st.bones, before, EDIT_CONSTANTS["sharp_turn"],
+                                     beside_junctions(len(st.joints), st.bones)))
         if guards:
             put_back(st.joints, st.bones, before,
                      lambda X: np.unique(np.concatenate([g(X) for g in guards])))

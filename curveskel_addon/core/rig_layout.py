@@ -605,11 +605,19 @@ def _resample(pts, m):
     pts = np.asarray(pts, dtype=np.float64)
     if len(pts) == m + 1:
         return pts.copy()
-    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-    s = np.r_[0.0, np.cumsum(seg)]
+    s = _arc_lengths(pts)
     if s[-1] <= 0:
         return np.repeat(pts[:1], m + 1, axis=0)
-    u = np.linspace(0.0, s[-1], m + 1)
+    return _at_lengths(pts, s, np.linspace(0.0, s[-1], m + 1))
+
+
+def _arc_lengths(pts):
+    """(k,) the arc length from the first point to each point of the polyline ``pts``."""
+    return np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))]
+
+
+def _at_lengths(pts, s, u):
+    """The points at arc lengths ``u`` along the polyline ``pts`` (its arc lengths ``s``)."""
     return np.stack([np.interp(u, s, pts[:, k]) for k in range(3)], 1)
 
 
@@ -628,12 +636,9 @@ def _tip_distance(A, B):
     length (points at equal arc lengths from the tips)."""
     m = 16
     A, B = np.asarray(A, np.float64)[::-1], np.asarray(B, np.float64)[::-1]
-    sa = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(A, axis=0), axis=1))]
-    sb = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(B, axis=0), axis=1))]
+    sa, sb = _arc_lengths(A), _arc_lengths(B)
     u = np.linspace(0.0, min(sa[-1], sb[-1]), m + 1)
-    PA = np.stack([np.interp(u, sa, A[:, k]) for k in range(3)], 1)
-    PB = np.stack([np.interp(u, sb, B[:, k]) for k in range(3)], 1)
-    return float(np.mean(np.linalg.norm(PA - PB, axis=1)))
+    return float(np.mean(np.linalg.norm(_at_lengths(A, sa, u) - _at_lengths(B, sb, u), axis=1)))
 
 
 def named_rig(lay: RigLayout, plane: MirrorPlane | None = None, *, pair_tol: float = 0.1,
