@@ -25,6 +25,9 @@ Operators
   shorter than its radius, not next to a junction (the polish's last edit).
 * :func:`bridges_to_rungs` (split + merge) - a bridge between two loops across one web becomes
   the loops' shared rung across it.
+* :func:`.flat_corners.trim_flat_corners` (remove) - a chain's end bent into a flat part's
+  corner cut back onto the chain's line, a leaf into a plate's corner off a loop removed (its
+  own module: it reads the mesh's cross-sections; its constants here, ``corner_*``).
 * :func:`prune_leaves` (remove) - a leaf branch (leaf to junction) shorter than ``factor``
   times the junction's radius lies inside the junction's ball: a bump, not a part.
 * :func:`.centreline.split_long_bones` (split) - bones longer than a length split in equal
@@ -83,6 +86,25 @@ EDIT_CONSTANTS = {
     # of its radius and its length
     "rung_min_extent": 3.0,
     "rung_reach": 8.0,
+    # cut, in the polish: a chain's end bent into a flat part's corner (.flat_corners). A section
+    # across the chain at least ``corner_flat`` times wider than thick is a flat part's; it holds
+    # the tip when the tip lies within ``corner_hold`` of its half-widths (a wedge over 67 degrees)
+    "corner_flat": 1.5,
+    "corner_hold": 1.5,
+    # a held end is cut when it leaves the chain's line by more than ``corner_turned``
+    # half-widths (a tip left off a board's axis by the Reeb graph's pole, 0.3 of its
+    # half-width, is no corner), at the last joint within ``corner_bend`` of the line
+    "corner_turned": 0.4,
+    "corner_bend": 0.1,
+    # a leaf removed whole is a wedge: its sections' width per distance from the tip, innermost
+    # against outermost, at least this (a corner's is about constant; a stump's, a wrist's
+    # section as wide as the stump is long, falls with the distance)
+    "corner_wedge": 0.6,
+    # ... and the part cut off is one sheet with the part the chain goes on into: thicknesses
+    # within this ratio, thin directions within this many degrees (an ear cut off at the head,
+    # a lever at its hub, is none)
+    "corner_sheet_ratio": 1.35,
+    "corner_sheet_angle": 40.0,
 }
 
 

@@ -10,28 +10,28 @@ tip, the corner branch of the footprint's 2-D medial axis, which curve skeletons
 (mean-curvature flow pulls a corner in; the analytic curves of ``tests/meshes.py`` end half a
 width short of a board's end).
 
-A chain end is a flat corner as far as, walking in from its tip, the cross-sections across
-the chain are flat (width at least ``FLAT`` times their thickness, by their second moments:
-:func:`.cross_section.section_shapes`) and hold the tip: the tip lies within ``HOLD``
-half-widths of the section's point (a wedge of full angle above 2 atan(1 / HOLD) = 67 degrees:
-a right-angled corner holds its tip at every section, a pointed ear of 60 degrees does not,
-nor a board's straight part farther than ``HOLD`` half-widths from its end). Sections closer
-to the tip than their thickness are skipped (the tip's own cap). Then
+A chain end is a flat corner as far as, walking in from its tip, the cross-sections across the
+chain are flat (width at least ``corner_flat`` (``edit.EDIT_CONSTANTS``) times their thickness,
+by their second moments: :func:`.cross_section.section_shapes`) and hold the tip: the tip lies
+within ``corner_hold`` half-widths of the section's point (a wedge of full angle above 2 atan(2 / 3)
+= 67 degrees: a right-angled corner holds its tip at every section, a pointed ear of 60
+degrees does not, nor a board's straight part farther than ``corner_hold`` half-widths from its
+end). Sections closer to the tip than their thickness are skipped (the tip's own cap). Then
 
-* a leaf held up to a junction on a loop is removed, if its width grows with the distance
-  from its tip (``WEDGE``): the corner of a plate outside the loop round its hole (a frame's,
-  a washer's). Off a loop a leaf held whole is a stump as wide as it is long, a tab on a
-  board or the board's end beyond it, and a part;
+* a leaf held up to a junction on a loop is removed, if its width grows with the distance from
+  its tip (``corner_wedge``): the corner of a plate outside the loop round its hole (a frame's,
+  a washer's). Off a loop a leaf held whole is a stump as wide as it is long, a tab on a board
+  or the board's end beyond it, and a part;
 * else the held end is cut where it leaves the chain's line (the line inward of the held run)
-  by more than ``BEND`` half-widths, if it leaves it by more than ``TURNED`` somewhere (a
-  straight end is the part's own), and the tip is put on the line as far out as it was (a
-  board's corner end then reaches as far as its straight end);
+  by more than ``corner_bend`` half-widths, if it leaves it by more than ``corner_turned``
+  somewhere (a straight end is the part's own), and the tip is put on the line as far out as it
+  was (a board's corner end then reaches as far as its straight end);
 
-either only when the part cut off and the part the chain goes on into are one sheet: the
-same thickness within ``SHEET_RATIO``, the same thin direction within ``SHEET_ANGLE``. An ear
-or a lever meets a thicker head or hub; a round limb's sections are never flat, and walking
-in stops at the first that is not, so a finger next to a flat palm is not reached. On the
-18 shared and held-out meshes this touches the stuffed toy's flat paw alone.
+either only when the part cut off and the part the chain goes on into are one sheet: the same
+thickness within ``corner_sheet_ratio``, the same thin direction within ``corner_sheet_angle``.
+An ear or a lever meets a thicker head or hub; a round limb's sections are never flat, and
+walking in stops at the first that is not, so a finger next to a flat palm is not reached. On
+the 28 shared and held-out meshes this touches the stuffed toy's flat paw alone.
 
 Examples
 --------
@@ -43,30 +43,12 @@ from __future__ import annotations
 import numpy as np
 
 from .cross_section import section_shapes
-from .edit import chains, compact, cycle_bones
+from .edit import EDIT_CONSTANTS, chains, compact, cycle_bones
 
-__all__ = ["trim_flat_corners", "flat_ends", "FLAT", "HOLD", "TURNED", "BEND", "WEDGE",
-           "SHEET_RATIO", "SHEET_ANGLE"]
+__all__ = ["trim_flat_corners", "flat_ends"]
 
-#: A section at least this many times wider than thick is a flat part's.
-FLAT = 1.5
-#: A section holds the tip when the tip lies within this many of its half-widths.
-HOLD = 1.5
-#: A held end is cut when it leaves the chain's line by more than this many half-widths (a
-#: tip left off a board's axis by the Reeb graph's pole, 0.3 of its half-width, is no corner)...
-TURNED = 0.4
-#: ... at the last joint (walking out) within this many half-widths of the line.
-BEND = 0.1
-#: A leaf removed whole is a wedge: its sections' width per distance from the tip, innermost
-#: against outermost, at least this (a corner's is about constant; a stump's, a wrist's
-#: section as wide as the stump is long, falls with the distance). (A bent end cut back needs
-#: no such test: its bend says it; near a board's corner the sections run along the board.)
-WEDGE = 0.6
-#: ... and one sheet with the part the chain goes on into: the sections' thicknesses within
-#: this ratio, their thin directions within ``SHEET_ANGLE`` degrees (an ear cut off at the head,
-#: a lever at its hub, is none).
-SHEET_RATIO = 1.35
-SHEET_ANGLE = 40.0
+#: The constants: EDIT_CONSTANTS["corner_*"] (the edit operators' one place), with their reasons.
+_C = EDIT_CONSTANTS
 
 
 def flat_ends(V, F, joints, bones, *, face_of=None, vertex_edge=None):
@@ -97,7 +79,7 @@ def flat_ends(V, F, joints, bones, *, face_of=None, vertex_edge=None):
     size = float(np.linalg.norm(np.ptp(V, axis=0))) if len(V) else 0.0
 
     def shapes(X, T, near=None):
-        # a held section reaches at least dist / HOLD, and may reach across the whole mesh (a
+        # a held section reaches at least dist / corner_hold, and may reach across the whole mesh (a
         # section along a board's end runs the board's length): looked for near first (a
         # limb's section is found there, for a fraction of the cost), then across the mesh
         reach = np.full(len(X), size) if near is None else np.minimum(near, size)
@@ -173,7 +155,7 @@ class _Tail:
         if w > 0 and dist < th:
             held = None                                   # the tip's own cap: no say
         else:
-            held = bool(w > 0 and w >= FLAT * th and dist <= HOLD * w / 2)
+            held = bool(w > 0 and w >= _C["corner_flat"] * th and dist <= _C["corner_hold"] * w / 2)
         self.samples.append((self.k, dist, w, th, thin, held))
 
     def going(self):
@@ -232,9 +214,9 @@ class _Tail:
         # walking out from the held point, the last joint still on that line is the cut
         H = self.P[: i + 1, :3] - x[:3]
         off = np.linalg.norm(H - np.outer(H @ u, u), axis=1)
-        if off.max() <= TURNED * width / 2:
+        if off.max() <= _C["corner_turned"] * width / 2:
             return None
-        away = np.flatnonzero(off > BEND * width / 2)
+        away = np.flatnonzero(off > _C["corner_bend"] * width / 2)
         j = int(away.max()) + 1                       # first joint (from the tip) back on the line
         c, i, f = (x, i, f) if j > i else (self.P[j].copy(), j - 1, 1.0)
         # the tip goes onto the line as far out as it was (a board's straight end runs as far)
@@ -253,13 +235,13 @@ class _Tail:
             return None
         d = np.array([x[1] for x in off_part])
         w = np.array([x[2] for x in off_part])
-        if whole and w[-1] / d[-1] < WEDGE * w[0] / d[0]:
+        if whole and w[-1] / d[-1] < _C["corner_wedge"] * w[0] / d[0]:
             return None
         th = np.array([x[3] for x in off_part] + [b[1] for b in self.beyond])
         thin = np.array([x[4] for x in off_part] + [b[2] for b in self.beyond])
-        if not (th.min() > 0 and th.max() <= SHEET_RATIO * th.min()):
+        if not (th.min() > 0 and th.max() <= _C["corner_sheet_ratio"] * th.min()):
             return None
-        if np.abs(thin @ thin[0]).min() < np.cos(np.radians(SHEET_ANGLE)):
+        if np.abs(thin @ thin[0]).min() < np.cos(np.radians(_C["corner_sheet_angle"])):
             return None
         return c, i, f, whole, tip
 
