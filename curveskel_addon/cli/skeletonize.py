@@ -1,35 +1,37 @@
-#!/usr/bin/env python3
-"""Skeletonize mesh files from the command line.
+"""``curveskel skeletonize``: the curve-skeleton of one mesh file (also ``scripts/skeletonize.py``).
 
-    python scripts/skeletonize.py MESH [--json OUT.json] [--blend OUT.blend] [--render OUT.png]
-                                       [method options]
+    curveskel skeletonize MESH [--json OUT.json] [--blend OUT.blend] [--render OUT.png]
+                               [--bind --glb OUT.glb | --fbx OUT.fbx] [method options]
 
-Reads .obj .ply .stl .off, runs the curveskel core and prints vertices, components, joints,
-bones, E0 -> E, iterations and the time of every stage. Errors are reported in one line
-(exit status 2) — use --debug for a traceback.
+Reads .obj .ply .stl .off, runs the curveskel core, writes the outputs asked for, then prints
+vertices, components, joints, bones, E0 -> E, iterations and the time of every stage (stdout;
+``--quiet``: nothing). Progress goes to stderr for runs longer than a second. Errors are one
+line (exit status 2); ``--debug`` shows a traceback.
 
-No file is ever lost: every output path is checked before the computation (never the input
-mesh, a writable folder), each output is written to a temporary file beside it, checked
-complete, and renamed over the old one only then; a failed write keeps the old file and exits
-non-zero. Ctrl-C prints "interrupted", removes the temporary files and exits with 130.
+No file is ever lost or damaged (:mod:`.outputs`): every output path is checked before the
+computation, each output is written to a temporary file beside it and renamed over the old one
+only when complete; the summary is printed after the files are written, so a closed stdout
+(``... | head -0``) loses nothing and does not change the exit status. Ctrl-C, SIGTERM and
+SIGHUP remove the temporary files and exit with 128 + the signal's number (130, 143, 129).
 """
 
 from __future__ import annotations
 
 import argparse
+import io
 import os
-import shutil
+import signal
 import sys
 import time
 from dataclasses import fields
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+from .. import __version__
+from ..core import SOLVERS, CurveSkelError, SkeletonParams
+from .outputs import Output, check_outputs, commit, kept, remove_temps, temp_path
+from .progress import Progress
 
-from curveskel_addon.core import SOLVERS, CurveSkelError, SkeletonParams, skeletonize  # noqa: E402
-from curveskel_addon.core.mesh_io import read_mesh  # noqa: E402
+__all__ = ["build_parser", "main", "run", "params_from_args", "print_summary"]
 
 _HELP = {
     # the artist's settings (the Blender panel shows these)
@@ -46,7 +48,11 @@ _HELP = {
               "(eqs. 28-31), 'lm' = Levenberg-Marquardt, converges (default %(default)s)",
     "max_iterations": "upper bound on optimiser iterations (default %(default)s)",
     "tolerance": "stop when an iteration lowers E by less than TOLERANCE * E0 (paper: 1e-3; default %(default)s)",
-    "seed": "seed of the random first vertex of the pole search (default %(default)s)",
+    "seed": "where the pole search starts: 0 (default) starts at the vertex farthest from the "
+            "centroid (the same skeleton whatever the mesh's numbering, position or rotation), "
+            "any other value at a random vertex drawn from it, as in the paper. It moves the "
+            "pole, so it can change the branches' topology and the joint count (spot: 29-42 "
+            "joints over seeds 0-5); it also draws the fit's and the medial balls' subsets",
     "area_weighted": "weight vertices by their area: the surface integral of eq. 8 instead of a vertex sum",
     "refit_mapping": "re-fit each vertex's skeleton point to the closest bone point between solver "
                      "steps (lets bones fill the volume; off by default)",
@@ -65,22 +71,34 @@ _HELP = {
                           "0 = keep all; default %(default)s)",
 }
 
+_OUTPUT_POLICY = (
+    "Outputs: each is written to a temporary file beside it and renamed over the old file "
+    "only when complete. A path that exists must be a regular file (a directory, FIFO or "
+    "device such as /dev/null is refused); a symbolic link is followed and the file it points "
+    "to is replaced (the link stays); the replaced file keeps its permissions; a read-only "
+    "file is refused. Ctrl-C, SIGTERM and SIGHUP leave no temporary file behind.")
+
 
 class _Parser(argparse.ArgumentParser):
     """argparse with the CLI's one-line errors (``error: ...``, exit 2) instead of usage + error."""
 
     def error(self, message):
-        sys.stderr.write(f"error: {message} (see --help)\n")
+        _say(sys.stderr, f"error: {message} (see --help)\n")
         sys.exit(2)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(prog: str = "curveskel skeletonize") -> argparse.ArgumentParser:
+    """The command's argument parser (``prog``: the name shown in usage and errors)."""
     ap = _Parser(
-        prog="skeletonize.py",
-        description="Curve-skeleton of a mesh file (curveskel). Prints a summary; writes the "
-                    "skeleton as curveskel-skeleton/1 JSON with --json.",
+        prog=prog,
+        description="Curve-skeleton of a mesh file (curveskel). Writes the outputs asked for, "
+                    "then prints a summary; writes the skeleton as curveskel-skeleton/1 JSON "
+                    "with --json.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="Example: python scripts/skeletonize.py examples/spot.obj --json out/spot.json")
+        epilog=_OUTPUT_POLICY + "\n\nProgress (stage and bar) goes to stderr once a run takes "
+               "more than a second: redrawn in place on a terminal, one line per stage "
+               "otherwise; --quiet prints nothing but errors.\n\n"
+               f"Example: {prog} examples/spot.obj --json out/spot.json")
     ap.add_argument("mesh", type=Path, help="mesh file: .obj, .ply, .stl or .off")
     ap.add_argument("--json", type=Path, metavar="OUT.json", help="write the skeleton as JSON")
     ap.add_argument("--paper", action="store_true",
@@ -89,10 +107,14 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--quality", action="store_true",
                     help="compute the quality measures (energy, reconstruction distance, inside "
                          "fraction, topology) and store them in the JSON meta")
+    ap.add_argument("--quiet", "-q", action="store_true",
+                    help="print nothing but errors (no progress, no summary)")
+    ap.add_argument("--version", action="version", version=f"curveskel {__version__}")
     ap.add_argument("--debug", action="store_true", help="show a traceback on errors")
     r = ap.add_argument_group("rigging (needs Blender as a Python module, bpy)")
     r.add_argument("--bind", action="store_true",
-                   help="build the armature in Blender and skin the mesh to it (skeleton-mapping weights)")
+                   help="build the armature in Blender and skin the mesh to it (skeleton-mapping "
+                        "weights); needs an output that takes the rig: --glb, --fbx or --blend")
     r.add_argument("--glb", type=Path, metavar="OUT.glb",
                    help="export the rigged mesh + armature with Blender's glTF exporter (implies --bind)")
     r.add_argument("--fbx", type=Path, metavar="OUT.fbx",
@@ -117,7 +139,8 @@ def build_parser() -> argparse.ArgumentParser:
             g.add_argument(flag, dest=f.name, action=argparse.BooleanOptionalAction, default=None,
                            help=_HELP.get(f.name, "") + f" (default {'on' if val else 'off'})")
         elif f.name == "solver":
-            g.add_argument(flag, dest=f.name, choices=SOLVERS, default=None, help=_HELP[f.name] % {"default": val})
+            g.add_argument(flag, dest=f.name, choices=SOLVERS, default=None,
+                           help=_HELP[f.name] % {"default": val})
         else:
             g.add_argument(flag, dest=f.name, type=type(val), default=None,
                            help=_HELP.get(f.name, "") % {"default": val})
@@ -125,6 +148,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def params_from_args(args) -> SkeletonParams:
+    """The method parameters the arguments ask for (``--paper``'s, else the defaults, with
+    each option given replacing its field)."""
     base = SkeletonParams.paper() if args.paper else SkeletonParams()
     d = base.to_dict()
     for f in fields(SkeletonParams):
@@ -135,6 +160,7 @@ def params_from_args(args) -> SkeletonParams:
 
 
 def print_summary(path, V, sk, seconds: float, out=sys.stdout) -> None:
+    """The run's summary: mesh, repairs, skeleton, energy, times (and quality) on ``out``."""
     s = sk.summary()
     info = sk.meta.get("input", {})
     print(f"mesh        {path}: {len(V)} vertices, {info.get('input_faces', '?')} triangles, "
@@ -193,138 +219,94 @@ def _flat(d, prefix=""):
     return out
 
 
-# -- outputs: checked before the run, written to a temporary file, renamed when complete --------
-#: temporary files of this run still on disk (removed on any failure or interrupt)
-_TEMPS: set[Path] = set()
-#: the output options, in the order they are written
-OUTPUT_FLAGS = ("json", "glb", "fbx", "blend", "render")
-_SUFFIX_NEEDED = {"glb": ".glb", "fbx": ".fbx"}
+
+def _flat(d, prefix=""):
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flat(v, prefix + k + "."))
+        elif isinstance(v, (int, float, str, bool)):
+            out[prefix + k] = v
+    return out
 
 
-def check_outputs(args) -> dict[str, Path]:
-    """The output paths given, each checked before anything runs: not the input mesh, not
-    two options naming one file, not a directory, in a folder that exists or can be created
-    and can be written. Raises CurveSkelError with one clear line."""
-    mesh = Path(args.mesh).resolve()
-    outs: dict[str, Path] = {}
-    for flag in OUTPUT_FLAGS:
-        path = getattr(args, flag, None)
-        if path is None:
-            continue
-        path = Path(path)
-        opt = "--" + flag
-        res = path.resolve()
-        if res == mesh or (path.exists() and mesh.exists() and os.path.samefile(path, mesh)):
-            raise CurveSkelError(f"{opt} {path} is the input mesh: refusing to overwrite it")
-        for other, p in outs.items():
-            if p.resolve() == res:
-                raise CurveSkelError(f"--{other} and {opt} name the same file {path}")
-        need = _SUFFIX_NEEDED.get(flag)
-        if need and path.suffix.lower() != need:
-            raise CurveSkelError(f"{opt} {path}: the file name must end in {need}")
-        if path.is_dir():
-            raise CurveSkelError(f"cannot write {opt} {path}: it is a directory")
-        folder = res.parent
-        while not folder.exists():
-            folder = folder.parent
-        if not folder.is_dir():
-            raise CurveSkelError(f"cannot write {opt} {path}: {folder} is a file, not a folder")
-        if not os.access(folder, os.W_OK | os.X_OK):
-            raise CurveSkelError(f"cannot write {opt} {path}: the folder {folder} is not writable")
-        if folder == res.parent:
-            _probe(folder, opt, path)
-        outs[flag] = path
-    return outs
+# -- the run ----------------------------------------------------------------------------------------
+#: The flags that take a bound rig (--bind alone would compute it and write nothing).
+_BIND_OUTPUTS = ("glb", "fbx", "blend")
 
 
-def _probe(folder: Path, opt: str, path: Path) -> None:
-    """Create and remove a file in ``folder`` (a read-only file system passes os.access)."""
-    import tempfile
+def run(args, report=None, progress=None) -> int:
+    """Check the outputs, skeletonize, write every output, then print the summary.
 
+    Parameters
+    ----------
+    args : argparse.Namespace from :func:`build_parser`
+    report : io.StringIO, optional
+        Where the summary is gathered; printed to stdout after the last file is written.
+    progress : Progress, optional
+        The stderr progress reporter (default: one for this run, silent with ``--quiet``).
+
+    Returns
+    -------
+    int : the exit status (0).
+    """
+    from ..core import SkeletonRun
+    from ..core.mesh_io import read_mesh
+
+    if args.bind and not any(getattr(args, f) for f in _BIND_OUTPUTS):
+        raise CurveSkelError("--bind needs an output that takes the bound rig: --glb OUT.glb, "
+                             "--fbx OUT.fbx or --blend OUT.blend (nothing would be written)")
+    outs = check_outputs(args)
+    params = params_from_args(args)
+    report = io.StringIO() if report is None else report
+    progress = Progress(enabled=not args.quiet) if progress is None else progress
+    t0 = time.perf_counter()
+    progress("read", 0.0)
+    V, F = read_mesh(args.mesh)
+    sk_run = SkeletonRun(V, F, params, progress)
+    for _ in sk_run.steps():
+        pass
+    progress("polish", 0.0)
+    sk = sk_run.result()
+    if args.quality:
+        from ..core.quality import quality
+
+        progress("quality", 0.0)
+        sk.meta["quality"] = quality(V, F, sk)
+    seconds = time.perf_counter() - t0
+    print_summary(args.mesh, V, sk, seconds, out=report)
+    if "json" in outs:
+        progress("write", 0.0)
+        write_json(sk, outs["json"])
+        print(f"wrote       {args.json}", file=report)
+    if args.bind or args.glb or args.fbx or args.blend or args.render:
+        progress("blender", 0.0)
+        _import_bpy()
+    # --bind with --blend / --render: the operator binds the mesh it saves (one import, one rig);
+    # a rig of its own only for the exports
+    if args.glb or args.fbx:
+        rig_outputs(args, outs, V, sk, report)
+    if args.blend or args.render:
+        blender_outputs(args, outs, params, report)
+    progress.close()
+    return 0
+
+
+def write_json(sk, out: Output) -> None:
+    """The skeleton as JSON, written whole or not at all."""
+    import numpy as np
+
+    for name in ("joints", "t"):
+        if not np.all(np.isfinite(np.asarray(getattr(sk, name), dtype=float))):
+            raise CurveSkelError(f"the result has non-finite {name} (a bug; please report it): "
+                                 "no JSON written")
+    tmp = temp_path(out)
     try:
-        fd, name = tempfile.mkstemp(prefix=".curveskel-probe-", dir=folder)
+        sk.save(tmp)
     except OSError as exc:
-        raise CurveSkelError(f"cannot write {opt} {path}: cannot create a file in {folder} ({exc.strerror or exc})") from None
-    os.close(fd)
-    os.unlink(name)
-
-
-def temp_path(path: Path) -> Path:
-    """A new temporary file name beside ``path``, with its suffix (exporters go by it); the
-    folder is created if needed. Registered in _TEMPS until committed or removed."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}{path.suffix}")
-    _TEMPS.add(tmp)
-    return tmp
-
-
-def remove_temps() -> None:
-    for tmp in list(_TEMPS):
-        for p in (tmp, Path(str(tmp) + "@")):         # Blender writes "<name>@" then renames
-            try:
-                p.unlink()
-            except OSError:
-                pass
-        _TEMPS.discard(tmp)
-
-
-_PNG_END = b"IEND\xaeB`\x82"
-_FBX_END = bytes.fromhex("f85a8c6adef5d97eece90ce3758f290b")
-_ZSTD_SEEKABLE_END = bytes.fromhex("b1ea928f")
-
-
-def incomplete(path: Path) -> str | None:
-    """Why the file a writer left at ``path`` is not complete (None when it is). Blender's
-    writers ignore a full disk and leave a truncated file: each format's end is checked."""
-    try:
-        size = path.stat().st_size
-    except OSError:
-        return "no file was written"
-    if size == 0:
-        return "the file is empty"
-    kind = path.suffix.lower()
-    with open(path, "rb") as fh:
-        head = fh.read(16)
-        fh.seek(max(0, size - 64))
-        tail = fh.read()
-    if kind == ".blend":
-        if not (tail.endswith(_ZSTD_SEEKABLE_END) or b"ENDB" in tail):
-            return "the .blend file is truncated"
-    elif kind == ".png":
-        if not tail.endswith(_PNG_END):
-            return "the PNG file is truncated"
-    elif kind == ".glb":
-        if head[:4] != b"glTF" or int.from_bytes(head[8:12], "little") != size:
-            return "the .glb file is truncated"
-    elif kind == ".fbx":
-        if head.startswith(b"Kaydara FBX Binary") and not tail.endswith(_FBX_END):
-            return "the .fbx file is truncated"
-    return None
-
-
-def commit(tmp: Path, path: Path, opt: str, *, backup: bool = False) -> None:
-    """Check the temporary file ``tmp`` is complete, flush it to disk and rename it to ``path``
-    (atomic: ``path`` is the old file or the new one, never a part). Otherwise remove it,
-    keep the old file and raise CurveSkelError."""
-    why = incomplete(tmp)
-    try:
-        if why is None:
-            fd = os.open(tmp, os.O_RDONLY)
-            try:
-                os.fsync(fd)
-            finally:
-                os.close(fd)
-            if backup and path.exists():
-                shutil.copy2(path, path.with_name(path.name + "1"))
-            os.replace(tmp, path)
-            _TEMPS.discard(tmp)
-            return
-    except OSError as exc:
-        why = exc.strerror or str(exc)
-    remove_temps()
-    kept = "the previous file is kept" if path.exists() else "nothing was written"
-    raise CurveSkelError(f"could not write {opt} {path}: {why} (disk full?); {kept}")
+        remove_temps()
+        raise CurveSkelError(f"could not write --json {out.given}: {exc.strerror or exc}; {kept(out)}") from None
+    commit(tmp, out)
 
 
 def _last_error(exc) -> str:
@@ -336,106 +318,34 @@ def _last_error(exc) -> str:
     return errors[-1] if errors else (lines[0] if lines else type(exc).__name__)
 
 
-def write_json(sk, path: Path) -> None:
-    """The skeleton as JSON, written whole or not at all."""
-    import numpy as np
-
-    for name in ("joints", "t"):
-        if not np.all(np.isfinite(np.asarray(getattr(sk, name), dtype=float))):
-            raise CurveSkelError(f"the result has non-finite {name} (a bug; please report it): "
-                                 "no JSON written")
-    tmp = temp_path(path)
-    try:
-        sk.save(tmp)
-    except OSError as exc:
-        remove_temps()
-        kept = "the previous file is kept" if path.exists() else "nothing was written"
-        raise CurveSkelError(f"could not write --json {path}: {exc.strerror or exc}; {kept}") from None
-    commit(tmp, path, "--json")
-
-
-def run(args) -> int:
-    check_outputs(args)
-    params = params_from_args(args)
-    t0 = time.perf_counter()
-    V, F = read_mesh(args.mesh)
-    sk = skeletonize(V, F, params)
-    if args.quality:
-        from curveskel_addon.core.quality import quality
-
-        sk.meta["quality"] = quality(V, F, sk)
-    seconds = time.perf_counter() - t0
-    print_summary(args.mesh, V, sk, seconds)
-    if args.json:
-        write_json(sk, args.json)
-        print(f"wrote       {args.json}", flush=True)
-    if args.bind or args.glb or args.fbx or args.blend or args.render:
-        print("blender     loading Blender (bpy) ...", flush=True)
-        _import_bpy()
-    # --bind with --blend / --render: the operator binds the mesh it saves (one import, one rig);
-    # a rig of its own only for the exports, or for --bind alone (a check)
-    if args.glb or args.fbx or (args.bind and not (args.blend or args.render)):
-        rig_outputs(args, V, sk)
-    if args.blend or args.render:
-        blender_outputs(args, params)
-    return 0
-
-
-def _import_bpy() -> None:
-    """Import bpy with Ctrl-C handled by :func:`_exit_on_sigint` from here on.
-
-    A KeyboardInterrupt raised inside bpy's start-up, or inside an operator, is caught and
-    printed by Blender, which then crashes or carries on; so from the Blender stage on Ctrl-C
-    removes the temporary files and leaves at once instead (set again after the import, in
-    case Blender installed its own handler)."""
-    import signal
-
-    signal.signal(signal.SIGINT, _exit_on_sigint)
-    # Blender's start-up installs signal handlers of its own (bpy 5.2 puts SIGINT back to the
-    # default action, which kills the process with no clean-up): hold Ctrl-C back while bpy
-    # loads, then deliver a pending one to our handler.
-    blocked = hasattr(signal, "pthread_sigmask")
-    if blocked:
-        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
-        import bpy  # noqa: F401
-    finally:
-        signal.signal(signal.SIGINT, _exit_on_sigint)
-        if blocked:
-            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
-
-
-def _exit_on_sigint(signum, frame) -> None:
-    _interrupted()
-
-
-def blender_outputs(args, params) -> None:
+def blender_outputs(args, outs: dict, params, report) -> None:
     """--blend/--render: the same operator the Blender UI runs (curveskel_addon.headless)."""
-    from curveskel_addon import headless
+    from .. import headless
 
-    blend = temp_path(args.blend) if args.blend else None
-    render = temp_path(args.render) if args.render else None
-    out = headless.cli_outputs(args.mesh, params.to_dict(), blend=blend, render=render,
+    blend = temp_path(outs["blend"]) if "blend" in outs else None
+    render = temp_path(outs["render"]) if "render" in outs else None
+    res = headless.cli_outputs(args.mesh, params.to_dict(), blend=blend, render=render,
                                bind=args.bind)
-    arm = out["armature"]
+    arm = res["armature"]
     print(f"blender     {arm.name}: {arm['curveskel_n_joints']} joints, {arm['curveskel_n_bones']} bones, "
-          f"operator {out['operator_seconds']:.2f} s", flush=True)
+          f"operator {res['operator_seconds']:.2f} s", file=report)
     if blend is not None:
-        commit(blend, args.blend, "--blend", backup=args.blend_backup)
-        print(f"wrote       {args.blend}", flush=True)
+        commit(blend, outs["blend"], backup=args.blend_backup)
+        print(f"wrote       {args.blend}", file=report)
     if render is not None:
-        commit(render, args.render, "--render")
-        print(f"wrote       {args.render} (render {out['render_seconds']:.1f} s)", flush=True)
+        commit(render, outs["render"])
+        print(f"wrote       {args.render} (render {res['render_seconds']:.1f} s)", file=report)
 
 
-def rig_outputs(args, V, sk) -> None:
-    """--bind/--glb/--fbx: import the mesh into Blender, armature + binding from ``sk``, export."""
+def rig_outputs(args, outs: dict, V, sk, report) -> None:
+    """--glb/--fbx: import the mesh into Blender, armature + binding from ``sk``, export."""
     import numpy as np
 
     import bpy
-    from curveskel_addon import headless
-    from curveskel_addon.export import export_rig
-    from curveskel_addon.ops_generate import build_result
+
+    from .. import headless
+    from ..export import export_rig
+    from ..ops_generate import build_result
 
     headless.reset_scene()
     ob = headless.import_mesh(args.mesh)
@@ -443,83 +353,169 @@ def rig_outputs(args, V, sk) -> None:
     ob.data.vertices.foreach_get("co", co)
     if len(co) != 3 * len(V) or np.abs(co.reshape(-1, 3) - V).max() > 1e-5 * max(float(np.ptp(V)), 1e-12):
         # Blender's importer changed the vertices: bind by closest point on the bones instead.
-        from curveskel_addon.core import Skeleton
+        from ..core import Skeleton
 
         sk = Skeleton(sk.joints, sk.bones, [], [], energy=sk.energy, timings=sk.timings, meta=sk.meta)
     options = {**sk.meta.get("params", {}), "make_armature": True, "make_silhouette": False,
                "silhouette_in_render": False, "bind": True}
     found = build_result(bpy.context, ob, sk, options)
     arm = found["armature"]
-    print(f"rig         {len(arm.data.bones)} bones, {len(ob.vertex_groups)} vertex groups", flush=True)
-    for flag, path in (("glb", args.glb), ("fbx", args.fbx)):
-        if path is not None:
-            tmp = temp_path(path)
+    print(f"rig         {len(arm.data.bones)} bones, {len(ob.vertex_groups)} vertex groups", file=report)
+    for flag in ("glb", "fbx"):
+        if flag in outs:
+            o = outs[flag]
+            tmp = temp_path(o)
             try:
-                out = export_rig(bpy.context, ob, arm, tmp)
+                res = export_rig(bpy.context, ob, arm, tmp)
             except CurveSkelError as exc:    # the exporter's traceback: say what went wrong
                 remove_temps()
-                kept = "the previous file is kept" if path.exists() else "nothing was written"
-                raise CurveSkelError(f"could not write --{flag} {path}: {_last_error(exc)}; {kept}") from None
-            commit(tmp, path, "--" + flag)
-            print(f"wrote       {path} ({out['format']}, {out['seconds']:.2f} s)", flush=True)
+                raise CurveSkelError(f"could not write --{flag} {o.given}: {_last_error(exc)}; {kept(o)}") from None
+            commit(tmp, o)
+            print(f"wrote       {o.given} ({res['format']}, {res['seconds']:.2f} s)", file=report)
 
 
-def main(argv=None) -> int:
-    ap = build_parser()
-    args = ap.parse_args(argv)
+# -- signals ----------------------------------------------------------------------------------------
+#: The signals that stop a run cleanly: temporary files removed, exit 128 + the number.
+STOP_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
+_SAID = {"SIGINT": "interrupted", "SIGTERM": "terminated (SIGTERM)", "SIGHUP": "hung up (SIGHUP)"}
+
+
+class Interrupted(KeyboardInterrupt):
+    """A stop signal arrived (SIGTERM, SIGHUP; SIGINT is Python's own KeyboardInterrupt). A
+    KeyboardInterrupt, so nothing that catches Exception swallows it."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _raise_interrupted(signum, frame) -> None:
+    raise Interrupted(signum)
+
+
+def _install_stop_handlers() -> None:
+    """SIGTERM and SIGHUP stop the run as Ctrl-C does (the default action would kill the
+    process and leave its temporary files)."""
+    for s in STOP_SIGNALS:
+        if s != signal.SIGINT:
+            signal.signal(s, _raise_interrupted)
+
+
+def _import_bpy() -> None:
+    """Import bpy with the stop signals handled by :func:`_exit_on_signal` from here on.
+
+    A KeyboardInterrupt raised inside bpy's start-up, or inside an operator, is caught and
+    printed by Blender, which then crashes or carries on; so from the Blender stage on a stop
+    signal removes the temporary files and leaves at once instead (set again after the import,
+    in case Blender installed handlers of its own)."""
+    for s in STOP_SIGNALS:
+        signal.signal(s, _exit_on_signal)
+    # Blender's start-up installs signal handlers of its own (bpy 5.2 puts SIGINT back to the
+    # default action, which kills the process with no clean-up): hold the signals back while
+    # bpy loads, then deliver a pending one to our handler.
+    blocked = hasattr(signal, "pthread_sigmask")
+    if blocked:
+        signal.pthread_sigmask(signal.SIG_BLOCK, set(STOP_SIGNALS))
     try:
-        return _finish(run(args))
-    except CurveSkelError as exc:
-        remove_temps()
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        return _interrupted()
-    except Exception as exc:  # never a raw traceback for users; --debug shows it
-        remove_temps()
-        if args.debug:
-            raise
-        print(f"error: unexpected {type(exc).__name__}: {exc} (run with --debug for details)", file=sys.stderr)
-        return 1
+        import bpy  # noqa: F401
+    finally:
+        for s in STOP_SIGNALS:
+            signal.signal(s, _exit_on_signal)
+        if blocked:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, set(STOP_SIGNALS))
 
 
-def _finish(rc: int) -> int:
-    """Every output is written: a Ctrl-C from here on has nothing left to stop and is ignored.
-    (The interpreter's shutdown puts a handled SIGINT back to the default action, so a late
-    Ctrl-C would otherwise kill the process by signal after a complete run.)"""
-    import signal
+def _exit_on_signal(signum, frame) -> None:
+    _interrupted(signum)
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+def _interrupted(signum: int = signal.SIGINT) -> int:
+    """A stop signal: remove the temporary files, say so, return 128 + its number. Once bpy is
+    (even partly) loaded the interpreter's normal shutdown can crash inside Blender: leave at
+    once instead."""
+    for s in STOP_SIGNALS:
+        signal.signal(s, signal.SIG_IGN)             # a second signal must not cut the clean-up
+    remove_temps()
+    name = signal.Signals(signum).name
+    _say(sys.stderr, _SAID.get(name, f"stopped by {name}") + "\n")
+    rc = 128 + int(signum)
+    if "bpy" in sys.modules or "_bpy" in sys.modules:
+        _flush_all()
+        os._exit(rc)
     return rc
 
 
-def _exit(rc: int) -> None:
-    """Leave with ``rc``; with bpy loaded at once, as the normal shutdown can crash inside Blender."""
-    if "bpy" in sys.modules or "_bpy" in sys.modules:
+# -- entry point ------------------------------------------------------------------------------------
+def main(argv=None, prog: str = "curveskel skeletonize") -> int:
+    """Run the command with ``argv`` (default sys.argv[1:]); returns the exit status."""
+    _install_stop_handlers()
+    args = None
+    report = io.StringIO()
+    progress = Progress(enabled=False)
+    try:
+        ap = build_parser(prog)
+        args = ap.parse_args(argv)
+        progress = Progress(enabled=not args.quiet)
+        rc = run(args, report, progress)
+    except CurveSkelError as exc:
+        remove_temps()
+        progress.close()
+        _say(sys.stderr, f"error: {exc}\n")
+        return 2
+    except KeyboardInterrupt as exc:
+        progress.close()
+        return _interrupted(getattr(exc, "signum", signal.SIGINT))
+    except Exception as exc:  # never a raw traceback for users; --debug shows it
+        remove_temps()
+        progress.close()
+        if args is not None and args.debug:
+            raise
+        _say(sys.stderr, f"error: unexpected {type(exc).__name__}: {exc} (run with --debug for details)\n")
+        return 1
+    _finish()
+    if not args.quiet:
+        _say(sys.stdout, report.getvalue())
+    return rc
+
+
+def _finish() -> None:
+    """Every output is written: a stop signal from here on has nothing left to clean up. A
+    Ctrl-C is ignored (the interpreter's shutdown puts a handled SIGINT back to the default
+    action, so a late one would kill the process by signal after a complete run); SIGTERM and
+    SIGHUP take their default action."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for s in STOP_SIGNALS:
+        if s != signal.SIGINT:
+            signal.signal(s, signal.SIG_DFL)
+
+
+def _say(stream, text: str) -> None:
+    """Write ``text`` to ``stream`` and flush; a closed or broken stream (``| head -0``,
+    a hung-up terminal) is let go: the files are written, the exit status stays."""
+    if stream is None or not text:
+        return
+    try:
+        stream.write(text)
+        stream.flush()
+    except (OSError, ValueError):
+        _silence(stream)
+
+
+def _silence(stream) -> None:
+    """Point a broken stream's descriptor at /dev/null, so the interpreter's final flush does
+    not fail again (and turn a written run into exit status 120)."""
+    try:
+        fd = stream.fileno()
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, fd)
+        os.close(null)
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
+def _flush_all() -> None:
+    for s in (sys.stdout, sys.stderr):
         try:
-            sys.stdout.flush()
-            sys.stderr.flush()
-        finally:
-            os._exit(rc)
-    sys.exit(rc)
-
-
-def _interrupted() -> int:
-    """Ctrl-C: remove the temporary files, say so, exit 130. Once bpy is (even partly) loaded
-    the interpreter's normal shutdown can crash inside Blender: leave at once instead."""
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)      # a second Ctrl-C must not cut the clean-up
-    remove_temps()
-    print("interrupted", file=sys.stderr)
-    if "bpy" in sys.modules or "_bpy" in sys.modules:
-        try:
-            sys.stdout.flush()
-            sys.stderr.flush()
-        finally:
-            os._exit(130)
-    return 130
-
-
-if __name__ == "__main__":
-    _exit(main())
+            s.flush()
+        except (OSError, ValueError, AttributeError):
+            _silence(s)
