@@ -151,10 +151,41 @@ def _triangles(P) -> np.ndarray:
 
 
 # -- OBJ --------------------------------------------------------------------------------------------
+#: The rest of each ``v`` line and of each ``f`` line (not vt, vn, ...).
+_V_ROWS = re.compile(rb"(?m)^[ \t]*v[ \t]+([^\n]*)")
+_F_ROWS = re.compile(rb"(?m)^[ \t]*f[ \t]+([^\n]*)")
+
+
 def _read_obj(path: Path, data: bytes):
     """Wavefront OBJ: ``v`` lines (x y z, extra numbers such as w or a colour ignored) and ``f``
     lines of 1-based (or negative, relative) indices, each corner ``v``, ``v/vt``, ``v//vn`` or
-    ``v/vt/vn`` (mixed freely). Other statements (vt, vn, o, g, usemtl, l, ...) are skipped."""
+    ``v/vt/vn`` (mixed freely). Other statements (vt, vn, o, g, usemtl, l, ...) are skipped.
+
+    The usual file (rows of one width, positive indices) is read at once; any other goes line
+    by line, which also says where an error is."""
+    V = _obj_vertices_fast(_V_ROWS.findall(data))
+    if V is not None:
+        F = _obj_faces_fast(_F_ROWS.findall(data), len(V))
+        if F is not None:
+            return V, _triangles(F)
+    return _read_obj_lines(path, data)
+
+
+def _obj_vertices_fast(rows: list[bytes]):
+    """(n, 3) vertices when every ``v`` row has the same count (>= 3) of numbers, else None."""
+    if not rows:
+        return np.zeros((0, 3))
+    lens = set(map(len, map(bytes.split, rows)))
+    if len(lens) != 1 or min(lens) < 3:
+        return None
+    try:
+        return np.array(b" ".join(rows).split(), dtype=np.float64).reshape(len(rows), -1)[:, :3].copy()
+    except ValueError:
+        return None
+
+
+def _read_obj_lines(path: Path, data: bytes):
+    """:func:`_read_obj` line by line (negative indices, uneven rows, and every error)."""
     vrows, vlines = [], []
     frows, flines, fbase = [], [], []
     for no, ln in enumerate(_lines(data), 1):
@@ -170,9 +201,6 @@ def _read_obj(path: Path, data: bytes):
             fbase.append(len(vrows))
     V = _floats(path, vrows, vlines, 3) if vrows else np.zeros((0, 3))
     n = len(V)
-    F = _obj_faces_fast(frows, n)
-    if F is not None:
-        return V, _triangles(F)
     faces = []
     for rest, no, base in zip(frows, flines, fbase):
         corners = rest.split()
