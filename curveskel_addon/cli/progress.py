@@ -6,7 +6,8 @@ Nothing is shown for the first ``delay`` seconds (1 s; the environment variable
 * on a terminal, one line redrawn in place (``\\r``): stage, bar, percent, seconds; cleared at
   the end, so the summary that follows is not mixed with it;
 * elsewhere (a log file, CI, a pipe), one plain line per stage as it begins
-  (``progress    optimise (2.4 s)``): no redraws to clutter a log.
+  (``progress    fitting E (2.4 s)``): no redraws to clutter a log; none while the mesh is
+  read, so a bad file's error stays the only line.
 
 The reporter never stops a run: a stderr that fails (closed pipe, hung-up terminal) silences it.
 """
@@ -32,6 +33,9 @@ STAGE_NAMES = {
     "blender": "Blender",
 }
 _BAR = 24
+#: Stages with no line of their own in a log: while the mesh is read and checked, an error is
+#: still to come as the one line on stderr (a slow start must not put a progress line first).
+_NOT_LOGGED = ("read",)
 
 
 class Progress:
@@ -87,7 +91,7 @@ class Progress:
             # a new stage at once, else at most ten redraws a second
             if new or self._drawn_at is None or now - self._drawn_at >= 0.1 or self.fraction >= 1.0:
                 self._draw(now)
-        elif new or not self.shown:
+        elif (new or not self.shown) and stage not in _NOT_LOGGED:
             self._write(f"progress    {STAGE_NAMES.get(stage, stage)} ({now - self.start:.1f} s)\n")
 
     def _draw(self, now: float) -> None:

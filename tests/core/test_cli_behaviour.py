@@ -86,6 +86,25 @@ def test_a_log_gets_one_plain_line_per_stage():
                             "progress    radii and polish (1.5 s)\n")
 
 
+def test_a_log_gets_no_line_while_the_mesh_is_read():
+    """A slow start (a loaded machine) must not put a progress line before a bad file's error."""
+    clock, s = Clock(), io.StringIO()
+    p = Progress(s, tty=False, delay=1.0, clock=clock)
+    clock.now += 3.0
+    p("read", 0.0)
+    assert s.getvalue() == ""
+    p("first_approximation", 1.0)
+    assert s.getvalue() == "progress    first approximation (3.0 s)\n"
+
+
+def test_a_bad_file_is_the_only_line_even_with_progress_at_once(tmp_path):
+    path = tmp_path / "bad.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    r = run_cli(path, env={**os.environ, "CURVESKEL_PROGRESS_DELAY": "0"})
+    assert r.returncode == 2
+    assert r.stderr == "error: the mesh has no faces: curveskel needs a surface, not a point cloud\n"
+
+
 def test_quiet_shows_nothing_and_a_broken_stream_stops_nothing():
     clock = Clock()
     q = io.StringIO()
@@ -136,8 +155,7 @@ def test_a_run_into_a_log_gets_plain_lines(mesh_file):
     assert r.returncode == 0, r.stderr
     lines = r.stderr.splitlines()
     assert [ln.split("(")[0].split(None, 1)[1].strip() for ln in lines] == [
-        "reading the mesh", "first approximation", "centring", "editing", "fitting E",
-        "radii and polish"]
+        "first approximation", "centring", "editing", "fitting E", "radii and polish"]
     assert all(ln.startswith("progress    ") and "\r" not in ln for ln in lines)
 
 
