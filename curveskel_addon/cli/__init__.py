@@ -17,6 +17,7 @@ __all__ = ["COMMANDS", "main", "run", "exit_with"]
 #: subcommand -> (module in this package, one line for ``curveskel --help``)
 COMMANDS: dict[str, tuple[str, str]] = {
     "skeletonize": ("skeletonize", "curve-skeleton of one mesh file (JSON, .blend, render, rig)"),
+    "batch": ("batch", "skeletonize a library of mesh files (process pool or Dask cluster)"),
 }
 
 

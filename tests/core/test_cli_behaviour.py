@@ -222,7 +222,7 @@ def test_an_unknown_subcommand_is_one_line_with_a_suggestion():
     r = _curveskel("skeletonise", "x.obj")
     assert r.returncode == 2
     assert r.stderr == ("error: unknown command 'skeletonise' (did you mean 'skeletonize'?); "
-                        "commands: skeletonize (see curveskel --help)\n")
+                        "commands: skeletonize, batch (see curveskel --help)\n")
     h = _curveskel("--help")
     assert h.returncode == 0 and "skeletonize  curve-skeleton of one mesh file" in h.stdout
 
