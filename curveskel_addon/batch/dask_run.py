@@ -163,11 +163,19 @@ def _resolved(limits: Limits) -> Limits:
 
 
 def _check_workers(client, out: str) -> None:
-    try:
-        seen = client.run(_worker_view, out)
-    except ModuleNotFoundError as exc:
-        raise CurveSkelError(f"the Dask workers cannot import curveskel ({exc}): install it, "
-                             "the same version, where the workers run") from None
+    """The scheduler (it unpickles the tasks) and every worker import this curveskel, and the
+    workers see the output folder: said once, before any task, instead of a row per asset."""
+    for who, runs, ask in (("scheduler", "runs", client.run_on_scheduler),
+                           ("workers", "run", client.run)):
+        try:
+            seen = ask(_worker_view, out)
+        except Exception as exc:   # the remote error comes back as the exception raised there
+            if "curveskel_addon" in str(exc):
+                raise CurveSkelError(f"the Dask {who} cannot import curveskel_addon: install "
+                                     f"curveskel (the same version) where the {who} {runs}"
+                                     ) from None
+            raise CurveSkelError(f"the Dask {who} did not answer: {_one_line(str(exc))}") from None
+    seen = client.run(_worker_view, out)
     if not seen:
         raise CurveSkelError("the Dask cluster has no workers")
     from .. import __version__
