@@ -100,6 +100,13 @@ def new_row(job: Job, sha256: str | None = None) -> dict:
     return row
 
 
+def _here() -> str:
+    """``host:pid`` of this process (the row's ``worker``: which machine, which process)."""
+    import socket
+
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
 def process(job: Job, sha256: str | None, *, peak_mb=lambda: None) -> dict:
     """Compute one asset and write its outputs; never raises for the asset's own faults.
 
@@ -119,6 +126,7 @@ def process(job: Job, sha256: str | None, *, peak_mb=lambda: None) -> dict:
 
     t0 = time.perf_counter()
     row = new_row(job, sha256)
+    row["worker"] = _here()
     try:
         _test_hook(job.source)
         outs = _check_outputs(job)

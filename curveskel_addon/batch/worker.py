@@ -19,7 +19,6 @@ import os
 import pickle
 import resource
 import signal
-import socket
 import struct
 import sys
 import threading
@@ -103,7 +102,6 @@ def main() -> None:
     _watch_parent()
     from .task import process
 
-    where = f"{socket.gethostname()}:{os.getpid()}"
     send(proto_out, ("ready", os.getpid()))
     while True:
         msg = _recv(proto_in)
@@ -112,7 +110,6 @@ def main() -> None:
         job, sha256 = msg
         reset_peak()
         row = process(job, sha256, peak_mb=peak_mb)
-        row["worker"] = where
         send(proto_out, ("row", row, "bpy" in sys.modules))
     if "bpy" in sys.modules:                     # Blender's shutdown can crash: leave at once
         proto_out.close()
