@@ -22,6 +22,7 @@ from __future__ import annotations
 import os
 import select
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -41,6 +42,7 @@ POLL = 0.1
 #: worker environment: one BLAS / OpenMP thread each (the workers already fill the cores)
 _THREADS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
             "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
+_HOST = socket.gethostname()
 _BOOT = ("import sys; sys.path.insert(0, {root!r}); "
          "from curveskel_addon.batch.worker import main; main()")
 
@@ -88,7 +90,8 @@ class Supervisor:
         self.started = 0                         # workers started (tests, the bench)
 
     # -- the worker process ------------------------------------------------------------------
-    def _start(self) -> None:
+    def _start(self) -> bool:
+        """Start a worker and wait until it is ready; False when stopped meanwhile."""
         root = str(Path(__file__).resolve().parents[2])
         env = dict(os.environ)
         for name in _THREADS:
@@ -102,10 +105,13 @@ class Supervisor:
         self._bpy_assets = 0
         self.started += 1
         msg = self._wait(time.monotonic() + START_TIMEOUT, None)
+        if msg == "stopped":
+            return False
         if not (isinstance(msg, tuple) and msg[0] == "ready"):
             why = msg if isinstance(msg, str) else "it did not start"
             self.kill()
             raise RuntimeError(f"a batch worker could not start: {why}")
+        return True
 
     def _wait(self, deadline: float, job: Job | None):
         """The worker's next message; or a string saying why none came (the worker is then
@@ -147,7 +153,7 @@ class Supervisor:
         self.kill()
         remove_temps_of(job, pid)
         row = new_row(job)
-        row.update(status=status, reason=reason,
+        row.update(status=status, reason=reason, worker=f"{_HOST}:{pid}",
                    peak_mb=round(peak / 2 ** 20, 1) if peak else None)
         return row
 
@@ -215,8 +221,8 @@ class Supervisor:
         """Run one asset in the worker; returns its row, or None when stopped (Ctrl-C)."""
         if self.stop.is_set():
             return None
-        if self.proc is None:
-            self._start()
+        if self.proc is None and not self._start():
+            return None
         pid = self.proc.pid
         t0 = time.monotonic()
         try:
@@ -231,7 +237,8 @@ class Supervisor:
         if isinstance(msg, str):                      # the worker died with the asset
             remove_temps_of(job, pid)
             row = new_row(job, sha256)
-            row.update(status="crashed", reason=msg, seconds=round(time.monotonic() - t0, 3))
+            row.update(status="crashed", reason=msg, seconds=round(time.monotonic() - t0, 3),
+                       worker=f"{_HOST}:{pid}")
             return row
         if isinstance(msg, dict):                     # a limit: the worker was killed
             msg.update(sha256=sha256, seconds=round(time.monotonic() - t0, 3))

@@ -115,6 +115,8 @@ def _check_full_run(r, out, library, reference):
     assert "63 of 63 assets" in r.stdout and "60 ok, 1 refused, 1 timeout, 1 crashed" in r.stdout
     assert "refused     1 x FILE contains no vertices (bad/empty.obj)" in r.stdout
     assert "slowest     " in r.stdout and f"results     {out / 'results.jsonl'}" in r.stdout
+    # progress on stderr, plain lines in a log (not a terminal)
+    assert "progress    63/63 assets (100 %)" in r.stderr and "/min" in r.stderr
     return rows
 
 
@@ -459,6 +461,26 @@ def test_summary_groups_refusals_and_names_the_slowest():
     assert lines[2] == "refused     4 x FILE line N: 'x' is not a number (p0.obj, p1.obj, p2.obj, ...)"
     assert lines[3] == "refused     1 x FILE contains no vertices (e.obj)"
     assert lines[4] == "timeout     t.obj: exceeded the time limit of 5 s: killed"
+
+
+def test_progress_lines_in_a_log_and_nothing_when_quiet():
+    import io
+
+    from curveskel_addon.batch.bar import BatchProgress
+
+    log = io.StringIO()
+    p = BatchProgress(20, stream=log, tty=False)
+    for i in range(20):
+        p.update({"status": "ok" if i % 7 else "refused"})
+    lines = log.getvalue().splitlines()
+    assert len(lines) == 10                      # one a tenth of the batch, not one an asset
+    assert lines[0].startswith("progress    2/20 assets (10 %), ") and "/min, ETA " in lines[0]
+    assert lines[-1].startswith("progress    20/20 assets (100 %), ") and lines[-1].endswith("done, 3 not ok")
+    quiet = io.StringIO()
+    q = BatchProgress(20, stream=quiet, enabled=False)
+    for i in range(20):
+        q.update({"status": "ok"})
+    assert quiet.getvalue() == "" and q.done == 20
 
 
 def test_curveskel_lists_batch_and_nothing_imports_dask_until_a_dask_run(tmp_path):
