@@ -7,6 +7,7 @@ Usage (from the repository root, with the project's venv):
     .venv/bin/python scripts/bench.py --quality       # quality: curveskel default + paper + peers
                                                       # (+ issue 10's shape measures, skeletons.png)
     .venv/bin/python scripts/bench.py --figures       # only docs/figures/skeletons.png
+    .venv/bin/python scripts/bench.py --batch         # batch throughput: 1 and 2 workers, Dask
 
 Each measurement runs in a fresh subprocess (one per mesh, or per mesh and method), so the peak
 resident memory (``ru_maxrss``) is that run's own and a crash or timeout of one peer does not stop
@@ -1035,11 +1036,151 @@ def run_command(args) -> None:
     print(f"curveskel is {ratio:.2f}x as fast as skeletor's wavefront (target > 1)")
 
 
+
+# -- batch throughput (issue 32) ----------------------------------------------------------------
+#: tiny tasks for the per-task overhead: empty files, refused as soon as they are read
+OVERHEAD_TASKS = 300
+
+
+def _batch_library(folder: Path) -> list[Path]:
+    """The throughput library: the shared meshes, the held-out ones and tests/batch_support's
+    54 procedural variants (several shapes, sizes, formats)."""
+    import shutil
+
+    sys.path.insert(0, str(ROOT / "tests"))
+    import batch_support
+
+    files = [folder / "good" / r for r in batch_support.make_library(folder / "good")]
+    for src in [*(SHARED / m for m in REAL), *sorted((ROOT / "tests" / "data" / "heldout").glob("*.obj"))]:
+        dst = folder / "good" / src.parent.name / src.name
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        if not dst.exists():
+            shutil.copy2(src, dst)
+            files.append(dst)
+    return sorted(set(files))
+
+
+def _batch_once(paths, out: Path, **kw) -> dict:
+    """One batch into a fresh folder: wall seconds, rows, per-worker peaks."""
+    import shutil
+
+    from curveskel_addon.batch import run
+
+    shutil.rmtree(out, ignore_errors=True)
+    t0 = time.perf_counter()
+    res = run(paths, out, timeout=900, **kw)
+    wall = time.perf_counter() - t0
+    peaks: dict = {}
+    for r in res:
+        if r.get("worker") and r.get("peak_mb") is not None:
+            peaks[r["worker"]] = max(peaks.get(r["worker"], 0.0), r["peak_mb"])
+    return {"wall_s": wall, "n": len(res), "per_min": 60.0 * len(res) / wall,
+            "statuses": res.counts(), "worker_peak_mb": sorted(peaks.values(), reverse=True),
+            "sum_asset_s": sum(r["seconds"] or 0.0 for r in res),
+            "digests": {r["path"]: r["skeleton_sha256"] for r in res}}
+
+
+def run_batch_bench(args) -> None:
+    """Assets per minute with 1 and 2 pool workers and on a 2-worker Dask LocalCluster, taking
+    turns ``--repeat`` times in one run (medians); per-worker peak memory; Dask's overhead per
+    task against the pool, on the library and on tiny tasks."""
+    import tempfile
+
+    from distributed import Client, LocalCluster
+
+    runs: dict = {"pool-1": [], "pool-2": [], "dask-2": [], "tiny-pool-2": [], "tiny-dask-2": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        lib = _batch_library(tmp / "lib")
+        tiny = []
+        (tmp / "tiny").mkdir()
+        for i in range(OVERHEAD_TASKS):
+            (tmp / "tiny" / f"e{i:03d}.obj").write_text("")
+            tiny.append(tmp / "tiny" / f"e{i:03d}.obj")
+        print(f"[batch] {len(lib)} meshes, {OVERHEAD_TASKS} tiny tasks; {max(args.repeat, 1)} turns")
+        t0 = time.perf_counter()
+        cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+        client = Client(cluster)
+        start_s = time.perf_counter() - t0
+        try:
+            for turn in range(max(args.repeat, 1)):
+                for name, paths, kw in (("pool-1", lib, {"workers": 1}), ("pool-2", lib, {"workers": 2}),
+                                        ("dask-2", lib, {"client": client}),
+                                        ("tiny-pool-2", tiny, {"workers": 2}),
+                                        ("tiny-dask-2", tiny, {"client": client})):
+                    r = _batch_once(paths, tmp / "out", **kw)
+                    runs[name].append(r)
+                    print(f"[batch] turn {turn + 1} {name}: {r['n']} in {r['wall_s']:.1f} s "
+                          f"({r['per_min']:.1f}/min) {r['statuses']}", flush=True)
+            dask_rss = client.run(lambda: __import__("resource").getrusage(
+                __import__("resource").RUSAGE_SELF).ru_maxrss / 1024.0)
+        finally:
+            client.close()
+            cluster.close()
+    med = {k: statistics.median(r["wall_s"] for r in v) for k, v in runs.items()}
+    n, nt = runs["pool-1"][0]["n"], runs["tiny-pool-2"][0]["n"]
+    rate = {k: 60.0 * (nt if k.startswith("tiny") else n) / med[k] for k in med}
+    ratio = med["pool-1"] / med["pool-2"]
+    turns = [a["wall_s"] / b["wall_s"] for a, b in zip(runs["pool-1"], runs["pool-2"])]
+    same = all(r["digests"] == runs["pool-1"][0]["digests"] for k in ("pool-1", "pool-2", "dask-2")
+               for r in runs[k])
+    over_lib = (med["dask-2"] - med["pool-2"]) / n
+    over_tiny = (med["tiny-dask-2"] - med["tiny-pool-2"]) / nt
+    peak = {k: max(max(r["worker_peak_mb"]) for r in runs[k]) for k in ("pool-1", "pool-2", "dask-2")}
+    result = {"env": env_line(), "assets": n, "tiny": nt, "runs": runs, "median_s": med,
+              "per_min": rate, "ratio_2_over_1": ratio, "ratio_per_turn": turns,
+              "dask_overhead_per_task_s": over_lib, "dask_overhead_per_tiny_task_s": over_tiny,
+              "cluster_start_s": start_s, "dask_worker_process_peak_mb": dask_rss,
+              "worker_peak_mb": peak, "identical_outputs": same}
+    for v in runs.values():
+        for r in v:
+            r.pop("digests")
+    rows = [["pool, 1 worker", f"{med['pool-1']:.1f}", f"{rate['pool-1']:.1f}", "1.00",
+             f"{peak['pool-1']:.0f}"],
+            ["pool, 2 workers", f"{med['pool-2']:.1f}", f"{rate['pool-2']:.1f}", f"{ratio:.2f}",
+             f"{peak['pool-2']:.0f}"],
+            ["Dask LocalCluster, 2 workers", f"{med['dask-2']:.1f}", f"{rate['dask-2']:.1f}",
+             f"{med['pool-1'] / med['dask-2']:.2f}", f"{peak['dask-2']:.0f}"]]
+    table = md_table(["run", "median wall s", "assets/min", "× 1 worker", "worker peak MiB"], rows)
+    target = "met" if ratio >= 1.7 else "**not met**"
+    body = f"""## Batch throughput (issue 32)
+
+Command: `.venv/bin/python scripts/bench.py --batch` — {env_line()}.
+
+{n} meshes (the 10 shared, the 8 held-out, tests/batch_support.py's 54 procedural variants in
+four formats), default settings, each configuration into a fresh output folder, the three taking
+turns {max(args.repeat, 1)} times in one run; medians. *worker peak MiB*: the largest peak
+resident size of one batch worker process over the assets it ran (a worker's peak is reset
+before each asset: VmHWM). The same skeletons in every run: {"yes" if same else "**no**"}.
+
+{table}
+
+Scaling with 2 workers on this {os.cpu_count()}-core machine: **{ratio:.2f}×** (target ≥ 1.7×:
+{target}; per turn {", ".join(f"{t:.2f}" for t in turns)}). Dask's overhead per task against the
+pool, side by side: {1000 * over_lib:+.0f} ms per asset on this library, {1000 * over_tiny:+.1f} ms
+per tiny task ({nt} empty files, refused as they are read: pool {rate['tiny-pool-2']:.0f}/min,
+Dask {rate['tiny-dask-2']:.0f}/min); starting the LocalCluster took {start_s:.1f} s (not in the
+walls). The Dask worker processes themselves (each hands its tasks to a batch worker process
+of its own, counted above) peaked at {", ".join(f"{v:.0f}" for v in dask_rss.values())} MiB.
+"""
+    print("\n" + table)
+    print(f"ratio {ratio:.2f}; dask overhead {1000 * over_lib:+.0f} ms/asset, {1000 * over_tiny:+.1f} ms/tiny task")
+    if not args.no_write:
+        OUT.mkdir(exist_ok=True)
+        (OUT / "batch.json").write_text(json.dumps(result, indent=1))
+        write_section("batch", body)
+        print(f"\nwrote {DOC.relative_to(ROOT)} (batch) and .bench/batch.json")
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quality", action="store_true", help="quality benchmark against peers (issue 5)")
     ap.add_argument("--command", action="store_true",
                     help="whole command on a ~90k-vertex OBJ against skeletor's wavefront (issue 11)")
+    ap.add_argument("--batch", action="store_true",
+                    help="batch throughput (issue 32): 1 and 2 workers, a 2-worker Dask "
+                         "LocalCluster, Dask's overhead per task; --repeat turns")
     ap.add_argument("--figures", action="store_true",
                     help="only docs/figures/skeletons.png: default skeleton of each shared mesh "
                          "over its reference (also drawn by --quality)")
@@ -1074,6 +1215,8 @@ def main(argv=None) -> None:
         run_command(args)
     elif args.figures:
         run_figures(args)
+    elif args.batch:
+        run_batch_bench(args)
     else:
         run_speed(args)
 
