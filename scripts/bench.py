@@ -1051,8 +1051,9 @@ def _batch_library(folder: Path) -> list[Path]:
     import batch_support
 
     files = [folder / "good" / r for r in batch_support.make_library(folder / "good")]
-    for src in [*(SHARED / m for m in REAL), *sorted((ROOT / "tests" / "data" / "heldout").glob("*.obj"))]:
-        dst = folder / "good" / src.parent.name / src.name
+    heldout = sorted((ROOT / "tests" / "data" / "heldout").glob("*.obj"))
+    for src, sub in [*((SHARED / m, "shared") for m in REAL), *((h, "heldout") for h in heldout)]:
+        dst = folder / "good" / sub / src.name    # those batch_support copied are there already
         dst.parent.mkdir(parents=True, exist_ok=True)
         if not dst.exists():
             shutil.copy2(src, dst)
