@@ -142,6 +142,10 @@ def run(paths, out, *, workers: int | None = None, client=None, params=None,
     key = settings_key(settings)
     jobs = [Job(a.source, a.rel, str(out), settings, key, a.size) for a in found.assets]
     jobs.sort(key=lambda j: (-j.size, j.rel))    # the largest first: the last ones are short
+    if timeout is not None and timeout < 0:
+        raise CurveSkelError(f"--timeout {timeout:g}: must be positive (0: no limit)")
+    if restart_every < 0:
+        raise CurveSkelError(f"--restart-every {restart_every}: must be 0 (never) or more")
     workers = default_workers() if workers is None else int(workers)
     if workers < 1:
         raise CurveSkelError(f"--workers {workers}: needs at least 1")
@@ -295,8 +299,12 @@ class _Lock:
             import fcntl
         except ImportError:                      # Windows: no lock
             return self
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self.fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:                   # a read-only file system, no permission
+            raise CurveSkelError(f"cannot write in --out {self.path.parents[1]}: "
+                                 f"{exc.strerror or exc}") from None
         try:
             fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:

@@ -92,14 +92,15 @@ def reusable(record: dict | None, sha256: str | None, key: str, out_dir, rel: st
     return True
 
 
-#: keys of a skeleton JSON's ``meta`` that hold wall-clock times (they differ run to run)
+#: keys of a skeleton JSON's ``meta`` that hold wall-clock times (they differ run to run);
+#: and any key ending in ``_seconds`` (the quality measures' ``measure_seconds``)
 _CLOCK_KEYS = ("timings", "seconds")
 
 
 def skeleton_digest(doc: dict) -> str:
-    """SHA-256 of a skeleton JSON document without its wall-clock times (``meta.timings`` and
-    every ``seconds`` inside meta): two runs that computed the same skeleton have the same
-    digest, whichever machine, worker or order."""
+    """SHA-256 of a skeleton JSON document without its wall-clock times (``meta.timings``,
+    every ``seconds`` and ``*_seconds`` inside meta): two runs that computed the same skeleton
+    have the same digest, whichever machine, worker or order."""
     doc = dict(doc)
     doc["meta"] = _drop_clock(doc.get("meta", {}))
     text = json.dumps(doc, sort_keys=True, separators=(",", ":"))
@@ -108,7 +109,8 @@ def skeleton_digest(doc: dict) -> str:
 
 def _drop_clock(x):
     if isinstance(x, dict):
-        return {k: _drop_clock(v) for k, v in x.items() if k not in _CLOCK_KEYS}
+        return {k: _drop_clock(v) for k, v in x.items()
+                if k not in _CLOCK_KEYS and not k.endswith("_seconds")}
     if isinstance(x, list):
         return [_drop_clock(v) for v in x]
     return x

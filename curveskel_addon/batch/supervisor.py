@@ -224,6 +224,11 @@ class Supervisor:
         if self.proc is None and not self._start():
             return None
         pid = self.proc.pid
+        try:                                     # the log holds this asset's lines only
+            self._log.seek(0)
+            self._log.truncate()
+        except (OSError, ValueError):
+            pass
         t0 = time.monotonic()
         try:
             send(self.proc.stdin, (job, sha256))

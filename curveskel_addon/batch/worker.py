@@ -99,6 +99,9 @@ def main() -> None:
     proto_out = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)                                # prints (core, Blender) go to stderr
     signal.signal(signal.SIGINT, signal.SIG_IGN)     # the batch decides when a worker stops
+    import faulthandler
+
+    faulthandler.enable()                        # a crash's "Fatal Python error" for its row
     _watch_parent()
     from .task import process
 

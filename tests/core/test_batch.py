@@ -415,6 +415,8 @@ def test_missing_and_unsupported_files_get_a_row(tmp_path):
     (["--memory-limit", "lots"], "--memory-limit 'lots'"),
     (["--spacing", "-1"], "spacing"),
     (["--workers", "2", "--dask", "local:2"], "not --workers"),
+    (["--timeout", "-1"], "--timeout -1: must be positive"),
+    (["--restart-every", "-2"], "--restart-every -2"),
 ])
 def test_bad_arguments_give_one_line_and_exit_2(tmp_path, args, message):
     mesh = tmp_path / "m.obj"
@@ -502,3 +504,30 @@ def test_curveskel_lists_batch_and_nothing_imports_dask_until_a_dask_run(tmp_pat
     # the extension bundles no dask, distributed or tqdm wheel
     manifest = (root / "blender_manifest.toml").read_text()
     assert not any(name in manifest for name in ("dask", "distributed", "tqdm"))
+
+
+def test_quality_measures_in_the_json_the_row_and_the_csv(library, tmp_path):
+    """--quality: the JSON's meta is the single-file command's with --quality; the row holds
+    the measures, the CSV one column each."""
+    import csv
+
+    from curveskel_addon.batch import run
+
+    _, good, _ = library
+    mesh = next(p for p in good if p.name.startswith("capsule-8x8"))
+    res = run(mesh, tmp_path / "out", workers=1, quality=True)
+    (row,) = res
+    one = tmp_path / "one.json"
+    r = subprocess.run([sys.executable, str(BATCH.parent / "skeletonize.py"), str(mesh), "--quality",
+                        "--json", str(one), "--quiet"], capture_output=True, text=True, timeout=300,
+                       env={**os.environ, **ONE_THREAD})
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(one.read_text())
+    assert row["skeleton_sha256"] == skeleton_digest(doc)
+    clockless = lambda q: {k: v for k, v in q.items() if k != "measure_seconds"}
+    assert clockless(row["quality"]) == clockless(doc["meta"]["quality"]) and len(row["quality"]) >= 3
+    with open(tmp_path / "out" / "results.csv", newline="") as fh:
+        (line,) = list(csv.DictReader(fh))
+    flat = {k: v for k, v in doc["meta"]["quality"].items() if not isinstance(v, dict)}
+    for k, v in flat.items():
+        assert line[f"quality.{k}"] == str(v)
