@@ -125,3 +125,28 @@ def test_pyproject_extras_are_pinned_for_both_pythons():
     assert "bpy==5.0.1; python_version == '3.11'" in blender and "bpy==5.0.1" in dev
     assert "bpy==5.2.3; python_version == '3.13'" in blender and "bpy==5.2.3" in py313
     assert all("==" in req for req in p["optional-dependencies"]["batch"])
+
+
+def test_the_installed_batch_command_runs_its_workers_from_the_venv(venv, tmp_path):
+    """``curveskel batch`` installed: its worker processes start from the installed package
+    (the source tree is on no path of that venv: a worker that could not import it would make
+    every row 'crashed'); the JSON is the single-file script's (one BLAS thread, as the
+    workers)."""
+    (tmp_path / "in").mkdir()
+    mesh = write_capsule_obj(tmp_path / "in" / "capsule.obj")
+    (tmp_path / "in" / "empty.obj").write_text("")
+    exe = venv / "bin" / "curveskel"
+    r = subprocess.run([str(exe), "batch", str(tmp_path / "in"), "--out", str(tmp_path / "out"),
+                        "--workers", "2"], capture_output=True, text=True, cwd=tmp_path,
+                       env=_env(), timeout=600)
+    assert r.returncode == 1, r.stderr                  # 1: empty.obj is refused
+    assert "2 of 2 assets" in r.stdout and "1 ok, 1 refused" in r.stdout
+    rows = [json.loads(line) for line in (tmp_path / "out" / "results.jsonl").read_text().splitlines()]
+    assert [(row["path"], row["status"]) for row in rows] == [("capsule.obj", "ok"), ("empty.obj", "refused")]
+    one_thread = {k: "1" for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    s = run_cli(mesh, "--json", tmp_path / "script.json", env={**os.environ, **one_thread})
+    assert s.returncode == 0, s.stderr
+    da = json.loads((tmp_path / "out" / "capsule.obj.json").read_text())
+    db = json.loads((tmp_path / "script.json").read_text())
+    for key in ("format", "joints", "bones", "mapping"):
+        assert da[key] == db[key], key
