@@ -99,11 +99,22 @@ def blender_ext() -> Path:
     return found[-1]
 
 
+#: left out of the extension: the batch runner (a process pool or a Dask cluster, dask and
+#: distributed behind it) belongs to the command line; Blender never runs it
+_COMMAND_LINE_ONLY = {PACKAGE: {"batch"}, PACKAGE / "cli": {"batch.py"}}
+
+
+def _not_in_extension(folder, names) -> set:
+    """copytree's ignore: caches, and the command line's batch modules."""
+    skip = set(shutil.ignore_patterns("__pycache__", "*.pyc")(folder, names))
+    return skip | (_COMMAND_LINE_ONLY.get(Path(folder), set()) & set(names))
+
+
 def stage(build_dir: Path, platforms: list[str] | None, with_wheels: bool) -> Path:
     """Copy the add-on and the manifest (edited for the chosen platforms/wheels) to build_dir."""
     if build_dir.exists():
         shutil.rmtree(build_dir)
-    shutil.copytree(PACKAGE, build_dir, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    shutil.copytree(PACKAGE, build_dir, ignore=_not_in_extension)
     text = MANIFEST.read_text()
     manifest = tomllib.loads(text)
     if platforms:

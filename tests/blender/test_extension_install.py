@@ -196,6 +196,9 @@ def test_zip_layout(built_zip):
     assert "blender_manifest.toml" in names and "__init__.py" in names    # side by side at the top
     assert "core/pipeline.py" in names and "ops_generate.py" in names
     assert not any("__pycache__" in n or n.endswith(".pyc") for n in names)
+    # the batch runner (dask, distributed, tqdm behind it) is the command line's only
+    assert not any(n.startswith("batch/") or n == "cli/batch.py" for n in names)
+    assert [n for n in names if n.endswith(".whl") and not n.startswith("wheels/scipy-")] == []
 
 
 def test_no_wheels_build_stages_a_manifest_without_wheels(tmp_path):
