@@ -13,7 +13,7 @@ from collections import defaultdict
 from pathlib import Path
 
 from ..core import CurveSkelError, SkeletonParams
-from .inputs import collect
+from .inputs import collect, refuse_url
 from .records import STATE_DIR, output_paths, record_path, settings_key
 from .report import summary as summary_text
 from .report import write_results
@@ -125,6 +125,7 @@ def run(paths, out, *, workers: int | None = None, client=None, params=None,
     t0 = time.monotonic()
     if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
+    refuse_url(os.fspath(out))
     out = Path(os.path.abspath(out))
     if out.exists() and not out.is_dir():
         raise CurveSkelError(f"--out {out} is a file, not a folder")

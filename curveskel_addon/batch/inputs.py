@@ -13,12 +13,13 @@ from __future__ import annotations
 
 import glob
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..core import CurveSkelError
 
-__all__ = ["Asset", "Collected", "collect", "MESH_SUFFIXES", "MANIFEST_SUFFIXES"]
+__all__ = ["Asset", "Collected", "collect", "refuse_url", "MESH_SUFFIXES", "MANIFEST_SUFFIXES"]
 
 #: the formats the command line reads (curveskel_addon.core.mesh_io says the same; a test checks)
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off")
@@ -97,6 +98,7 @@ def collect(inputs, *, root=None, exclude=None) -> Collected:
     ignored = 0
     for given in inputs:
         text = os.fspath(given)
+        refuse_url(text)
         path = os.path.abspath(os.path.expanduser(text))
         if os.path.isdir(path):
             files, n = _walk(path, skip)
@@ -150,6 +152,19 @@ def collect(inputs, *, root=None, exclude=None) -> Collected:
         rel = Path(rel).as_posix()
         assets.setdefault(rel, Asset(path, rel, size))
     return Collected(sorted(assets.values(), key=lambda a: a.rel), Path(base), ignored)
+
+
+_URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]+://")
+
+
+def refuse_url(text: str) -> None:
+    """Local paths only (a network file system mounted at the same path everywhere counts):
+    an fsspec URL (s3://, gs://, http://, ...) is refused with what to do instead. Object
+    stores cannot rename a file atomically, which the batch's outputs rely on."""
+    if _URL.match(text):
+        raise CurveSkelError(f"{text}: URLs are not supported, only paths (on a shared file "
+                             "system for Dask); mount the bucket (s3fs, gcsfuse, rclone mount) "
+                             "at the same path on every machine")
 
 
 def _walk(folder: str, skip: str | None) -> tuple[list[str], int]:

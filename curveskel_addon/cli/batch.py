@@ -53,7 +53,7 @@ def build_parser(prog: str = "curveskel batch") -> argparse.ArgumentParser:
                     help="a folder (searched recursively), a glob ('lib/**/*.obj', quoted), a "
                          "manifest (.txt/.lst/.list: one path a line, relative to the manifest) "
                          "or a mesh file")
-    ap.add_argument("--out", required=True, type=Path, metavar="DIR", help="the output folder")
+    ap.add_argument("--out", required=True, metavar="DIR", help="the output folder")   # str: a URL stays one
     ap.add_argument("--root", type=Path, metavar="FOLDER",
                     help="the folder the outputs' paths start from (default: the inputs' "
                          "common folder)")
@@ -131,7 +131,7 @@ def main(argv=None, prog: str = "curveskel batch") -> int:
     _install_stop_handlers()
     args = None
     try:
-        args = build_parser(prog).parse_args(argv)
+        args = build_parser(prog).parse_intermixed_args(argv)   # IN... before or after options
         res = run(args.inputs, args.out, workers=args.workers, client=args.dask,
                   params=params_from_args(args), glb=args.glb, fbx=args.fbx, blend=args.blend,
                   bind=args.bind, quality=args.quality, timeout=args.timeout,

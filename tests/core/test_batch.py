@@ -417,11 +417,13 @@ def test_missing_and_unsupported_files_get_a_row(tmp_path):
     (["--workers", "2", "--dask", "local:2"], "not --workers"),
     (["--timeout", "-1"], "--timeout -1: must be positive"),
     (["--restart-every", "-2"], "--restart-every -2"),
+    (["s3://bucket/assets"], "s3://bucket/assets: URLs are not supported"),
+    (["--out", "gs://bucket/out"], "gs://bucket/out: URLs are not supported"),
 ])
 def test_bad_arguments_give_one_line_and_exit_2(tmp_path, args, message):
     mesh = tmp_path / "m.obj"
     mesh.write_text("v 0 0 0\n")
-    r = run_batch(mesh, "--out", tmp_path / "out", *args)
+    r = run_batch(mesh, "--out", tmp_path / "out", *args, cwd=tmp_path)
     assert r.returncode == 2, (r.stdout, r.stderr)
     assert r.stderr.startswith("error:") and message in r.stderr and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
