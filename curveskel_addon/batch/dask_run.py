@@ -29,10 +29,11 @@ from .task import new_row
 
 __all__ = ["connect", "run_dask", "dask_task"]
 
-#: inside a Dask worker process: one supervisor per worker thread, and the batch's stop event
-_SUPERVISORS: dict[int, Supervisor] = {}
+#: inside a Dask worker process, per batch (its token; two batches may share a cluster): one
+#: supervisor per worker thread, and the batch's stop event
+_SUPERVISORS: dict[tuple[str, int], Supervisor] = {}
 _LOCK = threading.Lock()
-_STOP = threading.Event()
+_STOP: dict[str, threading.Event] = {}
 
 
 def connect(address, *, memory_limit=None):
@@ -96,13 +97,13 @@ def run_dask(jobs, client, *, limits: Limits, out: str, on_row) -> int:
     from distributed import as_completed
 
     _check_workers(client, out)
-    client.run(_start_batch)
     token = uuid.uuid4().hex[:8]
     keys = [f"curveskel-asset-{token}-{i}" for i in range(len(jobs))]
     by_key = dict(zip(keys, jobs))
     # retries: a task that raised (the batch's own fault, e.g. a worker that could not start);
     # a worker lost mid-task is the scheduler's to reschedule (allowed-failures)
-    futures = client.map(dask_task, jobs, limits=limits, key=keys, pure=False, retries=1)
+    futures = client.map(dask_task, jobs, limits=limits, token=token, key=keys, pure=False,
+                         retries=1)
     n_workers = len(client.scheduler_info().get("workers", {}))
     try:
         for fut in as_completed(futures):
@@ -119,27 +120,27 @@ def run_dask(jobs, client, *, limits: Limits, out: str, on_row) -> int:
     except BaseException:
         client.cancel(futures)
         try:
-            client.run(_stop_batch)              # running tasks: kill their worker processes
+            client.run(_stop_batch, token)       # running tasks: kill their worker processes
         except Exception:
             pass
         raise
     finally:
         try:
-            client.run(_close_supervisors)
+            client.run(_close_supervisors, token)
         except Exception:
             pass
     return n_workers
 
 
-def dask_task(job, limits: Limits):
-    """One asset on a Dask worker (see the module's docstring)."""
-    me = threading.get_ident()
+def dask_task(job, limits: Limits, token: str):
+    """One asset on a Dask worker (see the module's docstring): this thread's supervisor for
+    batch ``token`` runs it."""
+    me = (token, threading.get_ident())
     with _LOCK:
         sup = _SUPERVISORS.get(me)
-        if sup is None or sup.limits.__dict__ != _resolved(limits).__dict__:
-            if sup is not None:
-                sup.close()
-            sup = _SUPERVISORS[me] = Supervisor(_resolved(limits), _STOP)
+        if sup is None:
+            stop = _STOP.setdefault(token, threading.Event())
+            sup = _SUPERVISORS[me] = Supervisor(_resolved(limits), stop)
     return execute(job, sup)
 
 
@@ -195,20 +196,19 @@ def _worker_view(out: str):
     return __version__, os.path.isdir(out)
 
 
-def _start_batch() -> None:
-    _STOP.clear()
-
-
-def _stop_batch() -> None:
-    _STOP.set()
-
-
-def _close_supervisors() -> None:
-    """Let every batch worker process of this Dask worker leave (between batches)."""
+def _stop_batch(token: str) -> None:
     with _LOCK:
-        sups = list(_SUPERVISORS.values())
-        _SUPERVISORS.clear()
+        _STOP.setdefault(token, threading.Event()).set()
+
+
+def _close_supervisors(token: str) -> None:
+    """Let batch ``token``'s worker processes on this Dask worker leave (the batch is over)."""
+    with _LOCK:
+        sups = [_SUPERVISORS.pop(k) for k in [k for k in _SUPERVISORS if k[0] == token]]
+        _STOP.pop(token, None)
     for sup in sups:
+        if sup.busy:        # a stopped task still on it: its own thread kills the worker
+            continue
         try:
             sup.close()
         except Exception:   # a worker process already gone

@@ -182,16 +182,17 @@ def run(paths, out, *, workers: int | None = None, client=None, params=None,
             else:
                 from .dask_run import connect, run_dask
 
+                how = f"Dask {_where(client)}"
                 dask_client, owned = connect(client)
                 try:
                     n = run_dask(jobs, dask_client, limits=limits, out=str(out), on_row=on_row)
-                    how = f"Dask {_where(client)}: {n} worker{'s' if n != 1 else ''}"
+                    how += f": {n} worker{'s' if n != 1 else ''}"
                 finally:
                     if owned:
                         _close(dask_client)
         except KeyboardInterrupt as exc:
             results.interrupted = True
-            _finish(results, found, t0, how or "interrupted", bar)
+            _finish(results, found, t0, how, bar)
             raise BatchInterrupted(results, getattr(exc, "signum", None)) from None
         finally:
             bar.close()

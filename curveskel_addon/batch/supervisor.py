@@ -88,6 +88,7 @@ class Supervisor:
         self._buf = bytearray()
         self._bpy_assets = 0
         self.started = 0                         # workers started (tests, the bench)
+        self.busy = False                        # running an asset (its thread owns the worker)
 
     # -- the worker process ------------------------------------------------------------------
     def _start(self) -> bool:
@@ -219,6 +220,15 @@ class Supervisor:
     # -- one asset ---------------------------------------------------------------------------
     def run(self, job: Job, sha256: str | None) -> dict | None:
         """Run one asset in the worker; returns its row, or None when stopped (Ctrl-C)."""
+        self.busy = True
+        try:
+            return self._run(job, sha256)
+        finally:
+            self.busy = False
+            if self.stop.is_set():               # the batch is over: no idle worker left behind
+                self.kill()
+
+    def _run(self, job: Job, sha256: str | None) -> dict | None:
         if self.stop.is_set():
             return None
         if self.proc is None and not self._start():
