@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from pathlib import Path
 
 __all__ = ["STATE_DIR", "file_sha256", "settings_key", "output_paths", "record_path",

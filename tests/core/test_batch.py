@@ -124,9 +124,9 @@ def test_pool_outputs_equal_the_single_file_command_and_bad_inputs_get_rows(pool
     r, out = pool_run
     _check_full_run(r, out, library, reference)
     # the empty file's reason is the command line's own message
-    lib, _, bad = library
-    one = subprocess.run([sys.executable, str(BATCH.parent / "skeletonize.py"), str(lib / "bad" / "empty.obj")],
-                         capture_output=True, text=True, timeout=300)
+    lib, _, _ = library
+    one = subprocess.run([sys.executable, str(BATCH.parent / "skeletonize.py"),
+                          str(lib / "bad" / "empty.obj")], capture_output=True, text=True, timeout=300)
     reason = {row["path"]: row["reason"] for row in read_rows(out)}["bad/empty.obj"]
     assert one.returncode == 2 and one.stderr == f"error: {reason}\n"
 
