@@ -92,8 +92,9 @@ class GenerateSettings:
                                   "modifier showing the joints' radii", default=True)
     silhouette_in_render: BoolProperty(name="Render Silhouette",
                                        description="Show the silhouette in renders", default=False)
-    bind: BoolProperty(name="Bind Mesh", description="Add an Armature modifier and one vertex "
-                       "group per bone, weighted from the skeleton mapping (the mesh is not parented)",
+    bind: BoolProperty(name="Bind Mesh", description="Bind the mesh to the armature: an Armature "
+                       "modifier, one vertex group per deforming bone, and the armature as the mesh's "
+                       "parent (its world transform kept)",
                        default=False)
     interactive: BoolProperty(name="Interactive", description="Watch the optimisation: the "
                               "silhouette updates while it runs, Esc stops it and keeps the skeleton "

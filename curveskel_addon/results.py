@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 
 import bpy
+from mathutils import Matrix
 
 __all__ = ["COLLECTION_NAME", "FIGURE_KEYS", "collection", "result_names", "find_result",
            "source_of", "source_object", "previous_results", "remove_objects", "adopt_names", "tag",
@@ -149,10 +150,18 @@ def previous_results(source, keep=()) -> list:
 
 
 def remove_objects(objects) -> None:
-    """Delete objects and their data-blocks when nothing else uses them."""
-    for ob in list(objects):
-        if ob is None:
-            continue
+    """Delete objects and their data-blocks when nothing else uses them. Children that stay (a
+    mesh bound to a replaced armature) lose their parent but keep their world transform."""
+    objects = [ob for ob in objects if ob is not None]
+    going = {ob.as_pointer() for ob in objects}
+    for ob in objects:
+        for child in ob.children:
+            if child.as_pointer() not in going:
+                mw = child.matrix_world.copy()
+                child.parent = None
+                child.matrix_parent_inverse = Matrix.Identity(4)
+                child.matrix_world = mw
+    for ob in objects:
         data = ob.data
         bpy.data.objects.remove(ob, do_unlink=True)
         if data is not None and data.users == 0:

@@ -258,7 +258,7 @@ def test_heat_weights_for_comparison():
     V, sk, ob, arm, fig = rigged("bent_capsule")
     fig = bind_mesh(ob, arm, method="HEAT")
     assert fig["method"] == "HEAT" and fig["groups"] > 0
-    assert ob.parent is None                                # binding never re-parents the mesh
+    assert ob.parent is arm and ob.parent_type == 'OBJECT'     # parented as by Ctrl+P > Armature
     assert [m.name for m in ob.modifiers] == [MODIFIER_NAME]
     assert np.abs(evaluated(ob) - V).max() < 1e-5
     assert not any("slow" in w for w in fig["warnings"])   # 1.9k vertices: no warning
@@ -298,7 +298,7 @@ def test_glb_export_reimports(tmp_path):
     n_bones = len(arm.data.bones)
     before = world_positions(ob)
     out = export_rig(bpy.context, ob, arm, tmp_path / "star.glb")
-    assert ob.parent is None and np.allclose(np.array(ob.matrix_world), np.array(M), atol=1e-6)
+    assert ob.parent is arm and np.allclose(np.array(ob.matrix_world), np.array(M), atol=1e-6)
     assert out["format"] == "GLB" and (tmp_path / "star.glb").stat().st_size > 0
     bpy.ops.wm.read_homefile(use_empty=True)
     bpy.ops.import_scene.gltf(filepath=str(tmp_path / "star.glb"))
