@@ -360,3 +360,48 @@ def plate_hole_rings(size=PLATE["size"], hole_radius=PLATE["hole_radius"], hole_
         p = c + 0.5 * (lo + hi)[:, None] * u
         rings.append(polyline(np.column_stack([p, np.zeros(n)]), closed=True))
     return union_curves(*rings)
+
+
+# -- many-part models (issue 31) -----------------------------------------------------------------
+#: The six-part figure (z up, facing -y, mirror plane x = 0): each part a closed capsule or
+#: ellipsoid, overlapping its neighbours as kitbashed game and CAD figures do. Capsules are
+#: (axis start, axis end, radius): the surface reaches ``radius`` beyond both ends.
+SIX_PART = {
+    "torso": ((0.0, 0.0, 0.95), (0.0, 0.0, 1.55), 0.32),          # z 0.63 .. 1.87
+    "head": ((0.0, 0.0, 2.05), (0.20, 0.22, 0.25)),                # ellipsoid: centre, semi-axes
+    "arm.L": ((0.32, 0.0, 1.45), (1.37, 0.0, 1.45), 0.09),         # x 0.23 .. 1.46 (inside the torso to 0.32)
+    "arm.R": ((-0.32, 0.0, 1.45), (-1.37, 0.0, 1.45), 0.09),
+    "leg.L": ((0.16, 0.0, 0.85), (0.16, 0.0, 0.20), 0.12),         # z 0.08 .. 0.97 (the torso's bottom at 0.67)
+    "leg.R": ((-0.16, 0.0, 0.85), (-0.16, 0.0, 0.20), 0.12),
+}
+__all__ += ["six_part_figure", "SIX_PART"]
+
+
+def six_part_figure(parts=SIX_PART, n_around: int = 16, head_subdivisions: int = 3):
+    """A figure of six separate, overlapping closed parts (torso, head, two arms, two legs; see
+    ``SIX_PART``), concatenated into one mesh of six components, never united: the shape of many
+    game, kitbash and CAD assets. About 2.7k vertices.
+
+    Returns (V, F, part): ``part`` (n,) int, the index into ``list(parts)`` of each vertex's part.
+    """
+    import trimesh
+
+    Vs, Fs, ids = [], [], []
+    off = 0
+    for k, (name, spec) in enumerate(parts.items()):
+        if len(spec) == 3:                      # capsule
+            a, b, r = np.asarray(spec[0], float), np.asarray(spec[1], float), float(spec[2])
+            n_path = max(int(np.ceil(np.linalg.norm(b - a) / (0.6 * r))), 2) + 1
+            around = 2 * n_around if name == "torso" else n_around
+            V, F = tube_along(a + np.linspace(0, 1, n_path)[:, None] * (b - a), r, around, 5)
+        else:                                   # ellipsoid
+            sphere = trimesh.creation.icosphere(subdivisions=head_subdivisions)
+            V = np.asarray(sphere.vertices, float) * np.asarray(spec[1], float) + np.asarray(spec[0], float)
+            F = np.asarray(sphere.faces, np.int64)
+            if _signed_volume(V, F) < 0:
+                F = F[:, ::-1].copy()
+        Vs.append(V)
+        Fs.append(F + off)
+        ids.append(np.full(len(V), k))
+        off += len(V)
+    return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(ids)

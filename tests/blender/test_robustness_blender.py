@@ -156,6 +156,7 @@ def test_bind_with_blend_saves_the_bound_mesh_importing_it_once(mesh_file, tmp_p
     deform = {b.name for b in arms[0].data.bones if b.use_deform}
     assert deform <= {g.name for g in meshes[0].vertex_groups}
     assert any(m.type == 'ARMATURE' and m.object == arms[0] for m in meshes[0].modifiers)
+    assert meshes[0].parent == arms[0] and meshes[0].parent_type == 'OBJECT'    # issue 31
 
 
 @pytest.mark.parametrize("flag, name", [("--blend", "scene.blend"), ("--glb", "rig.glb"),
