@@ -5,7 +5,7 @@ a child of its armature, as a bind leaves it (``binding.parent_to_armature``); a
 (its parent cleared by hand) is parented for the export, keeping its world transform, and put
 back after. In the GLB the skinned mesh's node is then moved to the scene's roots, where glTF
 wants it (``gltf_layout``): the file passes the Khronos glTF Validator with no error and no
-warning (tests/blender/test_gltf_validator.py runs it when node is available). Blender's glTF
+warning (tests/blender/test_rig_exports.py runs it when node is available). Blender's glTF
 *importer* adds a hidden "Icosphere" (its bone display shape, in the collection
 "glTF_not_exported") unless imported with ``disable_bone_shape=True``: it is not in the file.
 """
