@@ -68,8 +68,9 @@ def test_glb_round_trip_pads_and_counts():
     assert read_glb(data)[0] == {"a": "é"}
 
 
-@pytest.mark.parametrize("data", [b"", b"not a glb file at all", b"glTF" + struct.pack("<II", 2, 999) + b"\0" * 12,
-                                  b"glTF" + struct.pack("<II", 1, 20) + b"\0" * 8])
+@pytest.mark.parametrize("data", [b"", b"not a glb file at all",
+                                  b"glTF" + struct.pack("<II", 2, 999) + b"\0" * 12,      # truncated
+                                  b"glTF" + struct.pack("<II", 1, 20) + b"\0" * 8])       # version 1
 def test_read_glb_refuses_what_is_not_a_whole_glb(data):
     with pytest.raises(ValueError):
         read_glb(data)
