@@ -55,6 +55,30 @@ def wheel_platform(name: str) -> str:
     sys.exit(f"error: wheel {name} is for none of the platforms {PLATFORMS}")
 
 
+def current_platform() -> str | None:
+    """The Blender platform of this machine ("linux-x64", ...), None for one Blender has no
+    build for."""
+    import platform
+
+    machine = platform.machine().lower()
+    if sys.platform.startswith("linux") and machine in ("x86_64", "amd64"):
+        return "linux-x64"
+    if sys.platform == "darwin":
+        return {"x86_64": "macos-x64", "arm64": "macos-arm64"}.get(machine)
+    if sys.platform == "win32" and machine in ("amd64", "x86_64"):
+        return "windows-x64"
+    return None
+
+
+def cached_wheels(platforms=PLATFORMS) -> bool:
+    """Whether every wheel the manifest lists for ``platforms`` is in dist/wheel-cache/ (then
+    a build for them downloads nothing)."""
+    manifest = tomllib.loads(MANIFEST.read_text())
+    names = [Path(w).name for w in manifest.get("wheels", [])]
+    return all((ROOT / "dist" / "wheel-cache" / wheel_platform(n) / n).is_file()
+               for n in names if wheel_platform(n) in platforms)
+
+
 def wheel_python(name: str) -> str:
     """'3.13' for a cp313 wheel."""
     tag = wheel_tags(name)[0]

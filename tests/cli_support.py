@@ -12,7 +12,7 @@ from meshes import capsule
 CLI = Path(__file__).resolve().parents[1] / "scripts" / "skeletonize.py"
 
 
-def run_cli(*args, limit=None, timeout=600):
+def run_cli(*args, limit=None, timeout=600, env=None):
     """The command line with ``args``; ``limit`` (bytes) makes the disk fill up there."""
     pre = None
     if limit is not None:
@@ -22,7 +22,7 @@ def run_cli(*args, limit=None, timeout=600):
             signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
             resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
     return subprocess.run([sys.executable, str(CLI), *map(str, args)], capture_output=True,
-                          text=True, timeout=timeout, preexec_fn=pre)
+                          text=True, timeout=timeout, preexec_fn=pre, env=env)
 
 
 def write_capsule_obj(path: Path) -> Path:

@@ -100,11 +100,21 @@ def triangulate(faces) -> np.ndarray:
     if isinstance(faces, np.ndarray) and faces.ndim == 2:
         polys = [faces]
     else:
-        faces = list(faces)
+        if isinstance(faces, np.ndarray) and faces.ndim != 2:
+            raise CurveSkelError(f"faces must have shape (m, 3) (or be a list of index lists), "
+                                 f"got an array of shape {faces.shape}")
+        try:
+            faces = list(faces)
+        except TypeError:
+            raise CurveSkelError(f"faces must be an (m, 3) array or a list of index lists, got "
+                                 f"{type(faces).__name__} {faces!r}") from None
         if not faces:
             return np.zeros((0, 3), np.int64)
         by_len: dict[int, list] = {}
         for f in faces:
+            if isinstance(f, (str, bytes)) or not hasattr(f, "__len__"):
+                raise CurveSkelError("faces must be index lists (each face a sequence of vertex "
+                                     f"indices), got a face {f!r}")
             by_len.setdefault(len(f), []).append(f)
         polys = [np.asarray(v) for v in by_len.values()]
     out = []

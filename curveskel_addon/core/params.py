@@ -132,21 +132,23 @@ class SkeletonParams:
 #: ((0,) means "> 0"), None means unbounded; for "choice" low is the tuple of allowed values.
 #: A field without a rule is still type-checked from its default's type (finite for floats).
 RULES: dict[str, tuple] = {
+    # upper bounds: far past any useful value in the setting's own unit, well before the
+    # numbers overflow (smoothness or centring at 1e308 broke the linear solves)
     "spacing": ("float", (0.0,), 0.5),
     "solver": ("choice", SOLVERS, None),
-    "max_iterations": ("int", 0, None),
+    "max_iterations": ("int", 0, 100_000),
     "tolerance": ("float", (0.0,), 1.0),
-    "seed": ("int", 0, None),
+    "seed": ("int", 0, 2**32 - 1),                  # NumPy's seed range
     "area_weighted": ("bool", None, None),
     "refit_mapping": ("bool", None, None),
-    "prune": ("float", 0.0, None),
-    "simplify": ("float", 0.0, None),
-    "smoothness": ("float", 0.0, None),
-    "containment": ("float", 0.0, None),
-    "max_fit_points": ("int", 0, None),
-    "max_joints": ("int", 0, None),
+    "prune": ("float", 0.0, 100.0),                 # radii (0.5 by default)
+    "simplify": ("float", 0.0, 100.0),              # radii (0.25)
+    "smoothness": ("float", 0.0, 1000.0),           # 10 is nearly straight already
+    "containment": ("float", 0.0, 1000.0),          # relative to E (1)
+    "max_fit_points": ("int", 0, 100_000_000),
+    "max_joints": ("int", 0, 100_000),
     "centre": ("bool", None, None),
-    "centring": ("float", 0.0, None),
+    "centring": ("float", 0.0, 1000.0),             # relative to E (3)
     "min_component_area": ("float", 0.0, (1.0,)),
 }
 

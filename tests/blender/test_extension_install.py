@@ -1,9 +1,14 @@
-"""Build the extension zips (scipy wheels for Python 3.11 and 3.13, four platforms), check that
-this Blender's validator accepts every one, install the linux-x64 zip with Blender's extension API
-into a temporary user folder and run the operator from the installed copy
-(bl_ext.user_default.curveskel), in a fresh process. Run by bpy 5.0.1 (.venv, Python 3.11) and
-bpy 5.2.3 (.venv313, Python 3.13) through scripts/test.sh, and bpy 4.2 by run_blender_tests_42.sh.
-The first run downloads the eight scipy wheels (about 300 MB) into dist/wheel-cache/."""
+"""Build the extension zip(s) (scipy wheels for Python 3.11 and 3.13), check that this Blender's
+validator accepts every one, install this machine's platform zip with Blender's extension API into
+a temporary user folder and run the operator from the installed copy (bl_ext.user_default.curveskel),
+in a fresh process. Run by bpy 5.0.1 (.venv, Python 3.11) and bpy 5.2.3 (.venv313, Python 3.13)
+through scripts/test.sh, and bpy 4.2 by run_blender_tests_42.sh.
+
+Which zips: by default this machine's platform only (its two scipy wheels, about 75 MB, are
+downloaded once into dist/wheel-cache/). All four platforms when CURVESKEL_ALL_PLATFORMS=1 is set
+or when dist/wheel-cache/ already holds all eight wheels (the four-platform download is about
+280 MB, too much for every fresh clone).
+"""
 
 import json
 import os
@@ -80,17 +85,47 @@ INSTALL_AND_RUN = textwrap.dedent('''
 ''')
 
 
+def _build_tools():
+    sys.path.insert(0, str(ROOT / "scripts"))
+    try:
+        import build_extension
+    finally:
+        sys.path.remove(str(ROOT / "scripts"))
+    return build_extension
+
+
+HERE = _build_tools().current_platform()
+
+
+def platforms_to_build() -> list[str]:
+    """This machine's platform, or all four when asked (CURVESKEL_ALL_PLATFORMS=1) or when their
+    wheels are all in the cache already."""
+    if os.environ.get("CURVESKEL_ALL_PLATFORMS") == "1" or _build_tools().cached_wheels():
+        return sorted(PLATFORMS)
+    assert HERE is not None, "this machine is none of Blender's four platforms"
+    return [HERE]
+
+
+def _zip_name(platform: str) -> str:
+    from curveskel_addon import __version__
+
+    return f"curveskel-{__version__}-{platform.replace('-', '_')}.zip"
+
+
 @pytest.fixture(scope="module")
 def built_zips():
-    """The four platform zips with wheels, built (and validated) by this Blender's tool."""
+    """The platform zips with wheels (:func:`platforms_to_build`), built (and validated) by
+    this Blender's tool."""
     out = Path(tempfile.mkdtemp(prefix="curveskel-dist-"))
+    platforms = platforms_to_build()
     try:
         proc = subprocess.run([sys.executable, str(ROOT / "scripts" / "build_extension.py"),
-                               "--out-dir", str(out), "--build-dir", str(out / "stage")],
+                               "--out-dir", str(out), "--build-dir", str(out / "stage"),
+                               *(a for p in platforms for a in ("--platform", p))],
                               capture_output=True, text=True, cwd=ROOT)
         assert proc.returncode == 0, proc.stdout + proc.stderr
         zips = {Path(line).name: Path(line) for line in proc.stdout.split()}
-        assert sorted(zips) == sorted(f"curveskel-0.1.0-{p.replace('-', '_')}.zip" for p in PLATFORMS)
+        assert sorted(zips) == sorted(_zip_name(p) for p in platforms)
         yield zips
     finally:
         shutil.rmtree(out, ignore_errors=True)
@@ -98,7 +133,20 @@ def built_zips():
 
 @pytest.fixture(scope="module")
 def built_zip(built_zips):
-    return built_zips["curveskel-0.1.0-linux_x64.zip"]
+    """This machine's zip (the one Blender installs here)."""
+    return built_zips[_zip_name(HERE)]
+
+
+def test_the_default_build_is_this_platforms_only(monkeypatch, tmp_path):
+    """Without CURVESKEL_ALL_PLATFORMS and without the eight cached wheels, one platform is built
+    (a fresh clone downloads two scipy wheels, not eight)."""
+    tools = _build_tools()
+    monkeypatch.delenv("CURVESKEL_ALL_PLATFORMS", raising=False)
+    monkeypatch.setattr(tools, "ROOT", tmp_path)               # an empty wheel cache
+    assert tools.cached_wheels() is False
+    assert platforms_to_build() == [HERE]
+    monkeypatch.setenv("CURVESKEL_ALL_PLATFORMS", "1")
+    assert platforms_to_build() == sorted(PLATFORMS)
 
 
 def _blender_ext() -> Path:
@@ -133,7 +181,7 @@ def test_manifest_fields():
     assert {wheel_platform(w) for w in cp311} == {wheel_platform(w) for w in cp313} == PLATFORMS
 
 
-def test_validator_accepts_every_zip(built_zips):
+def test_validator_accepts_every_zip_built(built_zips):
     tool = _blender_ext()
     assert tool.is_file(), tool
     for name, z in built_zips.items():
@@ -188,7 +236,8 @@ def test_install_and_run_from_installed_copy(built_zip, tmp_path):
     # Blender took the scipy wheel for its own Python (one, of the version the manifest pins for it)
     infos = list((tmp_path / "user").rglob("scipy-*.dist-info"))
     m = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
-    wanted = [Path(w).name for w in m["wheels"] if f"-{PY_TAG}-" in w and "linux" in w]
+    wanted = [Path(w).name for w in m["wheels"]
+              if f"-{PY_TAG}-" in w and _build_tools().wheel_platform(w) == HERE]
     assert len(infos) == 1 and len(wanted) == 1, (infos, wanted)
     assert infos[0].name == "-".join(wanted[0].split("-")[:2]) + ".dist-info"
     assert f"Tag: {PY_TAG}-{PY_TAG}-" in (infos[0] / "WHEEL").read_text()

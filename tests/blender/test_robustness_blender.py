@@ -5,6 +5,7 @@ operator leaking nothing when anything fails, and the command line's Blender out
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -179,15 +180,19 @@ def test_ctrl_c_during_the_blender_stage_is_interrupted_or_complete(mesh_file, t
     death by signal, a traceback or a partial file. Which of the two depends on when the
     signal lands, so both are accepted; the delays only spread the moments tried."""
     out = tmp_path / "scene.blend"
+    # progress lines from the start (no delay): the Blender stage's line says when it begins
+    env = {**os.environ, "CURVESKEL_PROGRESS_DELAY": "0"}
     p = subprocess.Popen([sys.executable, str(CLI), str(mesh_file), "--blend", str(out)],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    for line in p.stdout:
-        if "loading Blender" in line:
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    seen = False
+    for line in p.stderr:
+        if line.startswith("progress") and "Blender" in line:
+            seen = True
             time.sleep(delay)
             p.send_signal(signal.SIGINT)
             break
     _, err = p.communicate(timeout=300)
-    assert p.returncode in (0, 130), err
+    assert seen and p.returncode in (0, 130), err
     if p.returncode == 130:
         assert err.strip() == "interrupted"
         assert list(tmp_path.iterdir()) == []                              # no partial file

@@ -108,14 +108,11 @@ def test_unsupported_suffix_and_help(tmp_path):
 
 
 def test_help_explains_every_method_parameter():
-    import importlib.util
     from dataclasses import fields
 
     from curveskel_addon.core import SkeletonParams
 
-    spec = importlib.util.spec_from_file_location("skeletonize_cli", CLI)
-    cli = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(cli)
+    from curveskel_addon.cli import skeletonize as cli
     names = {f.name for f in fields(SkeletonParams)}
     assert names <= set(cli._HELP), sorted(names - set(cli._HELP))
     h = run("--help").stdout

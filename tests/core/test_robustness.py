@@ -6,7 +6,6 @@ tests/blender/test_robustness_blender.py; the method's own invariances are teste
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import struct
@@ -445,15 +444,16 @@ def test_cli_mesh_path_errors(tmp_path):
 
 
 def _load_cli():
-    spec = importlib.util.spec_from_file_location("skeletonize_cli_robustness", CLI)
-    cli = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(cli)
-    return cli
+    from curveskel_addon.cli import outputs
+
+    return outputs
 
 
 def test_a_read_only_folder_is_refused_before_running(tmp_path, monkeypatch, mesh_file):
+    from curveskel_addon.cli.skeletonize import build_parser
+
     cli = _load_cli()
-    args = cli.build_parser().parse_args([str(mesh_file), "--json", str(tmp_path / "ro" / "x.json")])
+    args = build_parser().parse_args([str(mesh_file), "--json", str(tmp_path / "ro" / "x.json")])
     real = os.access
     monkeypatch.setattr(cli.os, "access", lambda p, mode: False if Path(p) == tmp_path else real(p, mode))
     with pytest.raises(CurveSkelError, match="not writable"):

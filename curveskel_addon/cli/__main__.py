@@ -1,0 +1,5 @@
+"""``python -m curveskel_addon.cli COMMAND ...``: the ``curveskel`` command without installing."""
+
+from . import run
+
+run()
