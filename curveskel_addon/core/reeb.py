@@ -132,6 +132,25 @@ class FirstApproximation:
     region: np.ndarray | None = None
     bone_region: np.ndarray | None = None
     f: np.ndarray | None = None
+    pieces: tuple | None = None  # (levels, face -> multi-band index or -1, pstart, bmin, bmax, label)
+
+    def region_of(self, F, face, bary) -> np.ndarray:
+        """Reeb region of the surface points ``bary`` (barycentric) on faces ``face`` of this
+        component's triangles ``F``: a point inside a face that several levels cross lies in
+        the region of its (face, band) piece, which need not hold any vertex."""
+        F = np.asarray(F, np.int64)
+        reg = self.region[F[face, 0]]
+        if self.pieces is None:
+            return reg
+        levels, mt_of, pstart, bmin, bmax, label = self.pieces
+        q = mt_of[face]
+        multi = np.flatnonzero(q >= 0)
+        if len(multi):
+            fs = np.einsum("ij,ij->i", bary[multi], self.f[F[face[multi]]])
+            qm = q[multi]
+            band = np.clip(np.searchsorted(levels, fs, side="right"), bmin[qm], bmax[qm])
+            reg[multi] = label[pstart[qm] + band - bmin[qm]]
+        return reg
 
 
 # ------------------------------------------------------------------------------------------------
@@ -222,6 +241,7 @@ class _Reeb:
     below: np.ndarray       # (L,) region below each loop
     above: np.ndarray       # (L,) region above each loop
     cycles: int
+    pieces: tuple = ()      # (pstart, bmin, bmax, label): region of (multi-band triangle, band)
 
 
 def _regions(n, E, F, ct: _Contours) -> _Reeb:
@@ -266,7 +286,8 @@ def _regions(n, E, F, ct: _Contours) -> _Reeb:
     below = lab[pstart[T] + k - 1 - bmin[T]]
     above = lab[pstart[T] + k - bmin[T]]
     reg_v = lab[blob]
-    return _Reeb(int(n_reg), reg_v, below, above, _cycles(int(n_reg), below, above))
+    return _Reeb(int(n_reg), reg_v, below, above, _cycles(int(n_reg), below, above),
+                 (pstart, bmin, tb.max(axis=1), lab))
 
 
 def _cycles(n_reg, below, above) -> int:
@@ -322,7 +343,9 @@ def _remove_noise_caps(rb: _Reeb, ct: _Contours, f, pole, s, E=None,
     below = new[rb.below[kept]]
     above = new[rb.above[kept]]
     nr = len(uniq)
-    return _Reeb(nr, new[rb.reg_v], below, above, _cycles(nr, below, above)), kept, len(caps)
+    pstart, bmin, bmax, lab = rb.pieces
+    return (_Reeb(nr, new[rb.reg_v], below, above, _cycles(nr, below, above),
+                  (pstart, bmin, bmax, new[lab])), kept, len(caps))
 
 
 def _apart_below(reg_v, E, f, cap, under, t) -> tuple[bool, np.ndarray]:
@@ -593,6 +616,10 @@ def _approximate(V, F, E, expected, spacing, seed, extra, timings, t0) -> FirstA
     fa = _finish(V, joints, bones, region_bones, meta, timings)
     if region_bones is not None:
         fa.region, fa.bone_region = rb.reg_v.astype(np.int64), bone_reg
+        mt_of = np.full(len(F), -1, np.int64)
+        mt_of[ct.mt] = np.arange(len(ct.mt))
+        pstart, bmin, bmax, label = rb.pieces
+        fa.pieces = (ct.levels, mt_of, pstart, bmin, bmax, label.astype(np.int64))
     fa.f = f
     return _canonical_order(fa)
 

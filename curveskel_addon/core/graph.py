@@ -1,0 +1,71 @@
+"""The skeleton as the search holds it: joints, bones, and which bones each Reeb region may map to.
+
+A :class:`SkeletonGraph` is an immutable value: the continuous minimisation returns a new one
+with moved joints, a topology move returns a new one with its bone map. ``pairs`` lists
+``(region, bone)``: the surface of a Reeb region of the first approximation maps only onto
+those bones (sigma stays tied to the regions, the paper's protection against a silhouette that
+folds onto itself); a move rewrites the bone side through its bone map.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+__all__ = ["SkeletonGraph", "rewrite_pairs"]
+
+
+def _frozen(a, dtype, cols):
+    a = np.array(a, dtype=dtype).reshape(-1, cols)
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class SkeletonGraph:
+    """Joints (J, 4) x, y, z, r; bones (B, 2); pairs (P, 2) (region, bone)."""
+
+    joints: np.ndarray
+    bones: np.ndarray
+    pairs: np.ndarray
+
+    def __post_init__(self):
+        object.__setattr__(self, "joints", _frozen(self.joints, np.float64, 4))
+        object.__setattr__(self, "bones", _frozen(self.bones, np.int64, 2))
+        object.__setattr__(self, "pairs", _frozen(self.pairs, np.int64, 2))
+
+    def with_joints(self, joints) -> "SkeletonGraph":
+        g = SkeletonGraph(joints, self.bones, self.pairs)
+        for name in ("degree",):          # topology caches carry over
+            if name in self.__dict__:
+                g.__dict__[name] = self.__dict__[name]
+        return g
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joints)
+
+    @cached_property
+    def degree(self) -> np.ndarray:
+        return np.bincount(self.bones.ravel(), minlength=len(self.joints))
+
+    @property
+    def n_leaves(self) -> int:
+        return int(np.count_nonzero(self.degree == 1))
+
+
+def rewrite_pairs(pairs, bone_map) -> np.ndarray:
+    """``(region, bone)`` pairs after a move: ``bone_map`` rows ``(old bone, new bone)`` (an old
+    bone may have several new ones, or none: its regions then map to no bone of it)."""
+    pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
+    bm = np.asarray(bone_map, np.int64).reshape(-1, 2)
+    o = np.argsort(bm[:, 0], kind="stable")
+    bm = bm[o]
+    start = np.searchsorted(bm[:, 0], pairs[:, 1], side="left")
+    stop = np.searchsorted(bm[:, 0], pairs[:, 1], side="right")
+    cnt = stop - start
+    reg = np.repeat(pairs[:, 0], cnt)
+    idx = np.repeat(start, cnt) + (np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt))
+    return np.unique(np.stack([reg, bm[idx, 1]], 1), axis=0) if len(reg) else np.zeros((0, 2), np.int64)

@@ -1,0 +1,127 @@
+"""What each candidate merge would change in J, all candidates at once.
+
+Removing chain joint ``k`` (neighbours ``a``, ``b``) changes J only near it, the other joints
+held: the samples on its two bones move onto the new bone ``(a, b)`` (fit), the chain terms
+at ``a``, ``k`` and ``b`` change (centre: ``a`` and ``b`` get new tangents; smooth), the
+containment of the new bone replaces that of the two old ones, and one joint's price is saved.
+These estimates rank the candidates; the search then applies the best ones and keeps them only
+if the exact J, after the joints are fitted again, has fallen.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry.rows import row_norm
+from ..objective.terms import BONE_POINTS, bone_centres, chain_neighbours, smooth_triplets
+
+__all__ = ["merge_gains"]
+
+
+def _seg_t(P, A, B):
+    d = A - B
+    dd = np.einsum("ij,ij->i", d, d)
+    t = np.einsum("ij,ij->i", P - B, d) / np.maximum(dd, 1e-300)
+    return np.clip(t, 0.0, 1.0)
+
+
+def _smooth(Z, k, a, b, D):
+    """Smooth values of chain joints ``k`` with neighbours ``a``, ``b`` (rows may repeat a
+    joint with different neighbours), as J's term computes them."""
+    return smooth_triplets(Z, k, a, b, D, jacobian=None)
+
+
+def _contain(objective, A, B):
+    """Containment value of the bones ``A -> B`` (rows), as :func:`..objective.terms.contain_term`."""
+    u = BONE_POINTS
+    m = len(u)
+    Q = (u[None, :, None] * A[:, None, :] + (1 - u)[None, :, None] * B[:, None, :]).reshape(-1, 3)
+    _, nn = objective.tree.query(Q)
+    h = np.maximum(np.einsum("ij,ij->i", Q - objective.samples.points[nn],
+                             objective.samples.normal[nn]), 0.0).reshape(-1, m)
+    lb = row_norm(A - B)
+    return lb / (m * objective.D) * (h ** 2).sum(1) / objective.D ** 2
+
+
+def merge_gains(objective, graph, evaluation):
+    """Estimated change of J for removing each chain joint.
+
+    Returns
+    -------
+    k, a, b : (c,) int
+        The chain joints and their neighbours.
+    delta : (c,) float
+        Estimated J after minus J before (negative: the merge pays).
+    """
+    Z = np.asarray(graph.joints)
+    X = Z[:, :3]
+    D, w = objective.D, objective.weights
+    J = len(Z)
+    k, a, b = chain_neighbours(graph.bones, J)
+    if not len(k):
+        return k, a, b, np.zeros(0)
+    bones = graph.bones
+    # the two bones of each chain joint
+    ends = np.concatenate([bones[:, 0], bones[:, 1]])
+    order = np.argsort(ends, kind="stable")
+    bid = np.concatenate([np.arange(len(bones))] * 2)[order]
+    start = np.concatenate([[0], np.cumsum(np.bincount(ends, minlength=J))])
+    b1, b2 = bid[start[k]], bid[start[k] + 1]
+    # fit: the samples of b1 and b2 onto the new bone (a, b)
+    bone, t = evaluation.bone, evaluation.t
+    nb = len(bones)
+    cnt = np.bincount(bone, minlength=nb)
+    sorder = np.argsort(bone, kind="stable")
+    sstart = np.concatenate([[0], np.cumsum(cnt)])
+
+    def gather(bl):
+        c = cnt[bl]
+        loc = np.arange(c.sum()) - np.repeat(np.cumsum(c) - c, c)
+        return sorder[np.repeat(sstart[bl], c) + loc], np.repeat(np.arange(len(bl)), c)
+
+    s1, c1 = gather(b1)
+    s2, c2 = gather(b2)
+    s, cand = np.concatenate([s1, s2]), np.concatenate([c1, c2])
+    P = objective.samples.points[s]
+    ws = objective.samples.weights[s]
+    ij = bones[bone[s]]
+    ts = t[s]
+    S = ts[:, None] * Z[ij[:, 0]] + (1 - ts)[:, None] * Z[ij[:, 1]]
+    e_old = row_norm(P - S[:, :3]) ** 2 - S[:, 3] ** 2
+    ca, cb = a[cand], b[cand]
+    tn = _seg_t(P, X[ca], X[cb])
+    Sn = tn[:, None] * Z[ca] + (1 - tn)[:, None] * Z[cb]
+    e_new = row_norm(P - Sn[:, :3]) ** 2 - Sn[:, 3] ** 2
+    ws = ws / (objective.area * objective.scale[s] ** 4)
+    d_fit = np.bincount(cand, ws * (e_new ** 2 - e_old ** 2), len(k))
+    # chain terms at a, k, b before and after
+    is_chain = np.zeros(J, bool)
+    is_chain[k] = True
+    nbr = {int(kk): (int(aa), int(bb)) for kk, aa, bb in zip(k, a, b)}
+    rows_k, rows_a, rows_b, owner, sign = [], [], [], [], []
+    for c, (kk, aa, bb) in enumerate(zip(k, a, b)):
+        rows_k.append(kk); rows_a.append(aa); rows_b.append(bb); owner.append(c); sign.append(-1.0)
+        for v, old, new in ((aa, kk, bb), (bb, kk, aa)):
+            if is_chain[v]:
+                p, q = nbr[int(v)]
+                far = q if p == old else p
+                rows_k += [v, v]; rows_a += [p, far]; rows_b += [q, new]
+                owner += [c, c]; sign += [-1.0, 1.0]
+    rows_k, rows_a, rows_b = map(np.asarray, (rows_k, rows_a, rows_b))
+    owner, sign = np.asarray(owner), np.asarray(sign)
+    smooth = _smooth(Z, rows_k, rows_a, rows_b, D)
+    d_smooth = np.bincount(owner, sign * smooth, len(k))
+    d_centre = np.zeros(len(k))
+    if w.centre:
+        # the new bone (a, b) replaces b1 and b2; its thickness the mean of theirs
+        thick = objective.thickness(graph, evaluation.bone)
+        old = bone_centres(X[bones[:, 0]], X[bones[:, 1]], bones, objective.mesh, D, thick,
+                           J, jacobian=None)
+        new = bone_centres(X[a], X[b], np.stack([a, b], 1), objective.mesh, D,
+                           0.5 * (thick[b1] + thick[b2]), J, jacobian=None)
+        d_centre = new - old[b1] - old[b2]
+    d_contain = (_contain(objective, X[a], X[b]) - _contain(objective, X[k], X[a])
+                 - _contain(objective, X[k], X[b]))
+    delta = (d_fit + w.centre * d_centre + w.smooth * d_smooth + w.contain * d_contain
+             - w.joint)
+    return k, a, b, delta
