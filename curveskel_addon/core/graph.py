@@ -14,7 +14,7 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["SkeletonGraph", "rewrite_pairs"]
+__all__ = ["SkeletonGraph", "rewrite_pairs", "candidates_from_pairs"]
 
 
 def _frozen(a, dtype, cols):
@@ -69,3 +69,27 @@ def rewrite_pairs(pairs, bone_map) -> np.ndarray:
     reg = np.repeat(pairs[:, 0], cnt)
     idx = np.repeat(start, cnt) + (np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt))
     return np.unique(np.stack([reg, bm[idx, 1]], 1), axis=0) if len(reg) else np.zeros((0, 2), np.int64)
+
+
+def candidates_from_pairs(pairs, region, n_regions):
+    """CSR (indptr, bone ids) of each point's candidate bones: the bones of its region.
+
+    Parameters
+    ----------
+    pairs : (P, 2) int
+        (region, bone) rows, unique.
+    region : (n,) int
+        Region of each point.
+    n_regions : int
+
+    Returns
+    -------
+    (indptr (n + 1,), ids (p,)) as :func:`.mapping.closest_on_bones` takes them.
+    """
+    pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
+    o = np.argsort(pairs[:, 0], kind="stable")
+    st = np.concatenate([[0], np.cumsum(np.bincount(pairs[:, 0], minlength=n_regions))])
+    cnt = np.diff(st)[region]
+    indptr = np.concatenate([[0], np.cumsum(cnt)])
+    local = np.arange(indptr[-1]) - np.repeat(indptr[:-1], cnt)
+    return indptr, pairs[o, 1][np.repeat(st[region], cnt) + local]

@@ -16,8 +16,8 @@ from .geometry.face_tree import FaceTree
 from .geometry.inside import InsideTest
 from .geometry.mesh_graph import edge_table, faces_around
 from .geometry.rows import col_max, col_min, row_cross, row_norm
-from .geometry.sections import vertex_edges
-from .meb import size_of
+from .geometry.sections import Sections, cross_sections, vertex_edges
+from .geometry.meb import size_of
 
 __all__ = ["Mesh"]
 
@@ -87,3 +87,44 @@ class Mesh:
     def face_tree(self) -> FaceTree:
         """Boxes over the faces, for cross-sections."""
         return FaceTree(self.V, self.F)
+
+    @cached_property
+    def _section_cache(self) -> dict:
+        return {}
+
+    def sections(self, X, N, reach, *, jacobian=False) -> Sections:
+        """:func:`.geometry.sections.cross_sections` of this mesh, each plane's result kept:
+        a search asks again and again for the sections of bones that did not move."""
+        X = np.ascontiguousarray(X, np.float64).reshape(-1, 3)
+        N = np.ascontiguousarray(N, np.float64).reshape(-1, 3)
+        reach = np.broadcast_to(np.asarray(reach, np.float64), (len(X),))
+        cache = self._section_cache
+        rows = np.concatenate([X, N, reach[:, None]], 1)
+        keys = [r.tobytes() for r in rows]
+        hit = [cache.get(k) for k in keys]
+        need = [i for i, h in enumerate(hit) if h is None or (jacobian and h[4] is None)]
+        if need:
+            idx = np.asarray(need)
+            new = cross_sections(self.V, self.F, X[idx], N[idx], reach[idx], tree=self.face_tree,
+                                 jacobian=jacobian)
+            if len(cache) > 200_000:
+                cache.clear()
+            for j, i in enumerate(need):
+                entry = (new.centroid[j], new.area[j], new.spread[j], new.found[j],
+                         None if new.dc_dx is None else new.dc_dx[j],
+                         None if new.dc_dn is None else new.dc_dn[j],
+                         None if new.ds_dx is None else new.ds_dx[j],
+                         None if new.ds_dn is None else new.ds_dn[j])
+                cache[keys[i]] = entry
+                hit[i] = entry
+        if not len(X):
+            return cross_sections(self.V, self.F, X, N, reach, jacobian=jacobian)
+        cols = list(zip(*hit))
+        stack = lambda c, shape: (np.array(c).reshape((len(X),) + shape) if c[0] is not None  # noqa: E731
+                                  else None)
+        return Sections(stack(cols[0], (3,)), np.array(cols[1], np.float64),
+                        np.array(cols[2], np.float64), np.array(cols[3], bool),
+                        stack(cols[4], (3, 3)) if jacobian else None,
+                        stack(cols[5], (3, 3)) if jacobian else None,
+                        stack(cols[6], (3,)) if jacobian else None,
+                        stack(cols[7], (3,)) if jacobian else None)

@@ -25,7 +25,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import CurveSkelError
-from .rows import col_max, col_min, next_corners, row_sumsq, rows_differ, take_rows
+from .geometry.mesh_graph import components
+from .geometry.rows import col_max, col_min, next_corners, row_sumsq, rows_differ, take_rows
 
 __all__ = ["CleanMesh", "clean_mesh", "triangulate", "MERGE_TOLERANCE", "FLAT_TOLERANCE"]
 
@@ -389,7 +390,6 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
     Vertices left out of the working mesh have ``work_index`` -1 (mapped to the skeleton
     afterwards by the nearest working vertex).
     """
-    from .mesh_graph import components
 
     V = np.asarray(V)
     if V.size == 0:

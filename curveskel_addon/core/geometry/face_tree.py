@@ -28,7 +28,7 @@ import numpy as np
 __all__ = ["FaceTree", "LEAF"]
 
 #: Faces per leaf box.
-LEAF = 8
+LEAF = 4
 
 
 def _morton(P, bits=10):
@@ -77,6 +77,11 @@ class FaceTree:
             self.levels.append((lo, hi))
         self.levels.reverse()                                 # root first
         self.m = m
+        # the faces in tree order: their corners and outward normals, read in blocks
+        self.F = F[self.order]
+        self.corners = corners[self.order]
+        self.normals = np.cross(self.corners[:, 1] - self.corners[:, 0],
+                                self.corners[:, 2] - self.corners[:, 0])
 
     def cut_by_planes(self, X, N, reach):
         """(plane, face) pairs: faces whose box the plane through ``X[k]`` normal to ``N[k]``
@@ -89,6 +94,8 @@ class FaceTree:
         Returns
         -------
         plane : (p,) int, face : (p,) int
+            ``face`` indexes the faces in tree order (:attr:`F`, :attr:`corners`); the
+            mesh's own face is ``order[face]``.
         """
         X = np.asarray(X, np.float64).reshape(-1, 3)
         N = np.asarray(N, np.float64).reshape(-1, 3)
@@ -110,7 +117,7 @@ class FaceTree:
         a, b = self.leaf_start[node], self.leaf_stop[node]
         cnt = b - a
         pos = np.repeat(a, cnt) + (np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt))
-        return np.repeat(plane, cnt), self.order[pos]
+        return np.repeat(plane, cnt), pos
 
     def ray_hits(self, V, F, O, Dir, *, skip=None):
         """Distance along each ray ``O[k] + t Dir[k]`` (t > 0) to the first face it hits

@@ -29,7 +29,7 @@ import numpy as np
 
 from .rows import row_cross, row_norm
 
-__all__ = ["Samples", "face_samples", "subdivision_count"]
+__all__ = ["Samples", "face_samples", "subdivision_count", "canonical_subset"]
 
 
 @dataclass(frozen=True)
@@ -114,3 +114,56 @@ def face_samples(V, F, h: float, *, max_k: int = 64) -> Samples:
     P = (bary[:, :1] * V[F[face, 0]] + bary[:, 1:2] * V[F[face, 1]]
          + bary[:, 2:] * V[F[face, 2]])
     return Samples(P, w, face, bary, normal[face])
+
+
+#: Cycles of the draw's uniform over the key's range (see :func:`canonical_subset`). A 1e-9 D
+#: move of every vertex changes the geodesic key by ~1e-7 of its range (rounding summed along
+#: the paths), so u moves by ~1e-3 and a pick flips only within that of the k-th score: about
+#: one of 3,000 medial samples (armadillo, horse), where ranks flipped 4-6 near-tied pairs.
+#: Adjacent vertices differ by ~1e-3 of the range even on a 1M-vertex mesh: ~10 cycles apart,
+#: so the draw still looks independent from one vertex to the next.
+DRAW_CYCLES = 9973.0
+
+
+def canonical_subset(key, k, seed=0, p=None):
+    """``k`` indices drawn without replacement (probabilities ``p``, uniform if None) from a
+    quantity of the shape, ``key`` (e.g. the geodesic distance from the pole), so a permuted,
+    moved, rotated or scaled copy of the mesh gets the same points, and a copy whose vertices
+    moved by their last bits gets nearly all of them (issue 12). Sorted indices.
+
+    Efraimidis & Spirakis's weighted sampling without replacement: the ``k`` points with the
+    largest ``u ** (1 / p)``. Each point's ``u`` is a continuous function of its own key,
+    ``frac(c z + phase)`` with ``z`` the key scaled to [0, 1] and ``c`` ~ :data:`DRAW_CYCLES`
+    (``seed`` changes ``c`` and the phase), so a point's pick depends on its own key and weight
+    only and changes only where its score is within rounding of the k-th. Uniforms drawn from
+    a generator in key order (the previous sampler) handed two near-tied keys each other's
+    draws when their order flipped: 6 of the armadillo's 3,000 medial samples changed under a
+    1e-9 D jitter and a joint moved 2.2e-3 D. The randomness is the key's fine structure:
+    points whose keys differ by a multiple of ``1 / c`` of the range share ``u`` (a regular
+    grid of keys is drawn in a regular pattern; a mesh's geodesic distances are not a grid).
+    ``rng.choice`` with probabilities walks a cumulative sum instead: one last-bit change of
+    the weights moved 26 of 3,000 samples that way (and it is O(n k)).
+
+    Examples
+    --------
+    >>> key = np.random.default_rng(0).random(1000)
+    >>> pick = canonical_subset(key, 10)
+    >>> perm = np.random.default_rng(1).permutation(1000)     # numbered otherwise
+    >>> np.array_equal(np.sort(perm[canonical_subset(key[perm], 10)]), pick)
+    True
+    """
+    key = np.asarray(key, np.float64)
+    n = len(key)
+    if k >= n:
+        return np.arange(n)
+    lo, hi = float(key.min()), float(key.max())
+    z = (key - lo) / (hi - lo) if hi > lo else np.zeros(n)
+    golden = 0.6180339887498949
+    c = DRAW_CYCLES * (1.0 + (seed * golden) % 1.0)
+    u = np.modf(z * c + (seed * np.sqrt(2.0)) % 1.0)[0]
+    score = np.log(np.maximum(u, 1e-300))     # log u / p: the same order as u ** (1 / p)
+    if p is not None:
+        w = np.asarray(p, np.float64)
+        score = np.where(w > 0, score / np.where(w > 0, w, 1.0), -np.inf)
+    pick = np.argpartition(-score, k - 1)[:k]
+    return np.sort(pick)

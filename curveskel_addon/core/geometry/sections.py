@@ -126,19 +126,26 @@ def cross_sections(V, F, X, N, reach, *, tree=None, face_of=None, vertex_edge=No
         return empty
     if tree is not None:
         pi, fi = tree.cut_by_planes(X, N, reach)
-        h = np.einsum("fcd,fd->fc", V[F[fi]] - X[pi][:, None, :], N[pi])
-        neg = h < 0
-        cut = neg.any(axis=1) & ~neg.all(axis=1)
-        pi, fi = pi[cut], fi[cut]
+        Fs, corners, fnormal = tree.F, tree.corners, tree.normals
     else:
         if face_of is None:
             face_of = faces_around(F, n)
         if vertex_edge is None:
             vertex_edge = vertex_edges(V, F, face_of)
         pi, fi = _cut_faces(V, F, X, N, reach, face_of, vertex_edge)
+        Fs, corners, fnormal = F, None, None
     if not len(pi):
         return empty
-    seg = _segments(V, F, X, N, pi, fi)
+    cf = V[Fs[fi]] if corners is None else corners[fi]
+    h = np.einsum("fcd,fd->fc", cf - X[pi][:, None, :], N[pi])
+    neg = h < 0
+    cut = neg.any(axis=1) & ~neg.all(axis=1)
+    pi, fi, h, neg = pi[cut], fi[cut], h[cut], neg[cut]
+    if not len(pi):
+        return empty
+    fn = (row_cross(cf[cut, 1] - cf[cut, 0], cf[cut, 2] - cf[cut, 0]) if fnormal is None
+          else fnormal[fi])
+    seg = _segments(V, Fs[fi], N, pi, h, neg, fn)
     loops = _loops(seg, X, N)
     if loops is None:
         return empty
@@ -188,7 +195,7 @@ class _Segments:
 
 
 def _cut_faces(V, F, X, N, reach, face_of, vertex_edge):
-    """(point, face) pairs: the faces each point's plane cuts within its reach.
+    """(point, face) pairs: faces each point's plane may cut within its reach (a superset).
 
     A face the plane cuts has a corner within one of its sides' length of the plane, and a loop
     within ``reach`` of the point has such a corner within ``reach`` plus that length. The
@@ -219,19 +226,13 @@ def _cut_faces(V, F, X, N, reach, face_of, vertex_edge):
     first = np.repeat(indptr[vi] - np.cumsum(cnt) + cnt, cnt) + np.arange(cnt.sum())
     m = len(F)
     pf = np.unique(np.repeat(pi, cnt) * m + faces[first])
-    pi, fi = pf // m, pf % m
-    h = np.einsum("fcd,fd->fc", V[F[fi]] - X[pi][:, None, :], N[pi])
-    neg = h < 0
-    cut = neg.any(axis=1) & ~neg.all(axis=1)
-    return pi[cut], fi[cut]
+    return pf // m, pf % m
 
 
-def _segments(V, F, X, N, pi, fi) -> _Segments:
-    """The segment each cut face leaves in its point's plane, oriented with the section's inside
-    on its left (the face's outward normal, projected into the plane, points to its right)."""
-    Fc = F[fi]
-    h = np.einsum("fcd,fd->fc", V[Fc] - X[pi][:, None, :], N[pi])
-    neg = h < 0
+def _segments(V, Fc, N, pi, h, neg, fn) -> _Segments:
+    """The segment each cut face (corners ``Fc``, corner heights ``h`` above its point's plane,
+    outward normal ``fn``) leaves in the plane, oriented with the section's inside on its
+    left (the face's normal, projected into the plane, points to its right)."""
     f = len(Fc)
     ends = np.empty((2, f, 3))
     edge_a = np.empty((2, f, 3))
@@ -243,27 +244,27 @@ def _segments(V, F, X, N, pi, fi) -> _Segments:
     for a, b in ((0, 1), (1, 2), (2, 0)):
         hit = rows[neg[:, a] != neg[:, b]]
         va, vb = Fc[hit, a], Fc[hit, b]
-        lo, hi = np.minimum(va, vb), np.maximum(va, vb)
+        first = va < vb
+        lo, hi = np.where(first, va, vb), np.where(first, vb, va)
         # measured from the edge's lower-numbered end: both faces of an edge compute one point
-        hlo = np.where(va == lo, h[hit, a], h[hit, b])
-        hhi = np.where(va == lo, h[hit, b], h[hit, a])
+        hlo = np.where(first, h[hit, a], h[hit, b])
+        hhi = np.where(first, h[hit, b], h[hit, a])
         w = hlo / (hlo - hhi)
-        Va, Vd = V[lo], V[hi] - V[lo]
-        ends[slot[hit], hit] = Va + w[:, None] * Vd
-        edge_a[slot[hit], hit] = Va
-        edge_d[slot[hit], hit] = Vd
-        key[hit, slot[hit]] = (lo * n + hi) * k + pi[hit]
+        Va = V[lo]
+        Vd = V[hi] - Va
+        sl = slot[hit]
+        ends[sl, hit] = Va + w[:, None] * Vd
+        edge_a[sl, hit] = Va
+        edge_d[sl, hit] = Vd
+        key[hit, sl] = (lo * n + hi) * k + pi[hit]
         slot[hit] += 1
-    fn = row_cross(take_rows(V, Fc[:, 1]) - take_rows(V, Fc[:, 0]),
-                   take_rows(V, Fc[:, 2]) - take_rows(V, Fc[:, 0]))
     d = ends[1] - ends[0]
     # inside on the left of p -> q (seen along n): (n x d) points inwards, against the normal
     flip = np.einsum("ij,ij->i", row_cross(N[pi], d), fn) > 0
-    order = np.where(flip, 1, 0), np.where(flip, 0, 1)
-    take = lambda arr, o: arr[o, rows]  # noqa: E731
-    return _Segments(take(ends, order[0]), take(ends, order[1]), take(edge_a, order[0]),
-                     take(edge_d, order[0]), take(edge_a, order[1]), take(edge_d, order[1]),
-                     np.stack([key[rows, order[0]], key[rows, order[1]]], 1), pi)
+    o0, o1 = flip.astype(np.int64), 1 - flip.astype(np.int64)
+    return _Segments(ends[o0, rows], ends[o1, rows], edge_a[o0, rows], edge_d[o0, rows],
+                     edge_a[o1, rows], edge_d[o1, rows],
+                     np.stack([key[rows, o0], key[rows, o1]], 1), pi)
 
 
 def _loops(seg: _Segments, X, N):

@@ -18,9 +18,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config import CONFIG
 from ..graph import SkeletonGraph
 from ..moves.topology import contract_short, split_long
-from ..reeb import first_approximation
+from .reeb import first_approximation
 
 __all__ = ["Initial", "initial_graph"]
 
@@ -41,6 +42,9 @@ class Initial:
         the vertices no renumbering changes.
     meta : list of dict
         Per component: pole, spacing, levels, cycles...
+    vertex_bone, vertex_t : (n,) int, (n,) float
+        The first approximation's own mapping of every working vertex (the paper's sigma; with
+        ``resolve``, onto the resolved graph's bones).
     """
 
     graph: SkeletonGraph
@@ -48,10 +52,12 @@ class Initial:
     vertex_region: np.ndarray
     key: np.ndarray
     meta: list
+    vertex_bone: np.ndarray
+    vertex_t: np.ndarray
 
 
 def initial_graph(mesh, labels, n_components, samples, *, spacing, seed, inside=None,
-                  edges=None) -> Initial:
+                  edges=None, resolve=True) -> Initial:
     """The first approximation of every component of ``mesh`` at the spacing's resolution.
 
     Parameters
@@ -69,11 +75,16 @@ def initial_graph(mesh, labels, n_components, samples, *, spacing, seed, inside=
         Returns the mesh's inside test (one component only: see :func:`.reeb.first_approximation`).
     edges : tuple, optional
         The mesh's edge table (one component only).
+    resolve : bool
+        Bring the bones to the spacing's resolution (contract the short, split the long);
+        False: the paper's first approximation as it is.
     """
     V, F = mesh.V, mesh.F
     face_label = labels[F[:, 0]]
     joints, bones, pairs, meta = [], [], [], []
     vertex_region = np.zeros(len(V), np.int64)
+    vertex_bone = np.zeros(len(V), np.int64)
+    vertex_t = np.zeros(len(V))
     sample_region = np.zeros(len(samples.face), np.int64)
     key = np.zeros(len(V))
     nj = nr = 0
@@ -94,8 +105,11 @@ def initial_graph(mesh, labels, n_components, samples, *, spacing, seed, inside=
         else:
             reg_v, breg = fa.region, fa.bone_region
         g = SkeletonGraph(fa.joints, fa.bones, np.stack([breg, np.arange(len(fa.bones))], 1))
-        g, _ = contract_short(g, 0.5 * h)
-        g, _ = split_long(g, h)
+        vb, vt = fa.bone, fa.t
+        if resolve:
+            g, _ = contract_short(g, CONFIG.initial.contract * h)
+            g, _ = split_long(g, h)
+            vb, vt = np.zeros(len(vids), np.int64), np.zeros(len(vids))   # (not the paper's)
         ss = np.flatnonzero(s_face_label == c)
         local_face = np.full(len(F), -1, np.int64)
         local_face[fids] = np.arange(len(fids))
@@ -107,6 +121,8 @@ def initial_graph(mesh, labels, n_components, samples, *, spacing, seed, inside=
         bones.append(g.bones + nj)
         pairs.append(g.pairs + np.array([nr, 0]))
         vertex_region[vids] = reg_v + nr
+        vertex_bone[vids] = vb + sum(len(b) for b in bones[:-1])
+        vertex_t[vids] = vt
         sample_region[ss] = s_reg + nr
         key[vids] = fa.f if fa.f is not None else 0.0
         n_reg = int(max(reg_v.max(initial=-1), breg.max(initial=-1))) + 1
@@ -123,4 +139,4 @@ def initial_graph(mesh, labels, n_components, samples, *, spacing, seed, inside=
     graph = SkeletonGraph(np.concatenate(joints), np.concatenate(bones),
                           np.concatenate(shifted))
     return Initial(graph, sample_region, vertex_region, np.where(np.isfinite(key), key, 0.0),
-                   meta)
+                   meta, vertex_bone, vertex_t)

@@ -13,9 +13,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry.rows import row_norm
-from ..objective.terms import BONE_POINTS, bone_centres, chain_neighbours, smooth_triplets
+from ..geometry.segments import closest_on_bones
+from ..objective.terms import BONE_POINTS, bone_centres, chain_neighbours, fit_values, smooth_triplets
 
-__all__ = ["merge_gains"]
+__all__ = ["merge_gains", "prune_gains"]
 
 
 def _seg_t(P, A, B):
@@ -83,17 +84,15 @@ def merge_gains(objective, graph, evaluation):
     s2, c2 = gather(b2)
     s, cand = np.concatenate([s1, s2]), np.concatenate([c1, c2])
     P = objective.samples.points[s]
-    ws = objective.samples.weights[s]
+    ws, sc = objective.samples.weights[s], objective.scale[s]
     ij = bones[bone[s]]
     ts = t[s]
     S = ts[:, None] * Z[ij[:, 0]] + (1 - ts)[:, None] * Z[ij[:, 1]]
-    e_old = row_norm(P - S[:, :3]) ** 2 - S[:, 3] ** 2
     ca, cb = a[cand], b[cand]
     tn = _seg_t(P, X[ca], X[cb])
     Sn = tn[:, None] * Z[ca] + (1 - tn)[:, None] * Z[cb]
-    e_new = row_norm(P - Sn[:, :3]) ** 2 - Sn[:, 3] ** 2
-    ws = ws / (objective.area * objective.scale[s] ** 4)
-    d_fit = np.bincount(cand, ws * (e_new ** 2 - e_old ** 2), len(k))
+    d_fit = np.bincount(cand, fit_values(P, ws, Sn, objective.area, sc)
+                        - fit_values(P, ws, S, objective.area, sc), len(k))
     # chain terms at a, k, b before and after
     is_chain = np.zeros(J, bool)
     is_chain[k] = True
@@ -125,3 +124,54 @@ def merge_gains(objective, graph, evaluation):
     delta = (d_fit + w.centre * d_centre + w.smooth * d_smooth + w.contain * d_contain
              - w.joint)
     return k, a, b, delta
+
+
+def prune_gains(objective, graph, evaluation, chains):
+    """Estimated change of J for removing each leaf chain of ``chains`` (as
+    :func:`.topology.leaf_chains` gives them), the other joints held: the chain's samples move
+    to the closest of the junction's other bones, the chain's centre, smooth and containment
+    terms go, the junction's smooth term appears if it is left with two bones, and the chain's
+    joints and its tip are no longer priced."""
+    Z = np.asarray(graph.joints)
+    X = Z[:, :3]
+    D, w = objective.D, objective.weights
+    bones = graph.bones
+    B = len(bones)
+    out = np.full(len(chains), np.inf)
+    thick = objective.thickness(graph, evaluation.bone)
+    cen = (bone_centres(X[bones[:, 0]], X[bones[:, 1]], bones, objective.mesh, D, thick,
+                        len(Z), jacobian=None) if w.centre else np.zeros(B))
+    k_all, a_all, b_all = chain_neighbours(bones, len(Z))
+    sm_all = smooth_triplets(Z, k_all, a_all, b_all, D, jacobian=None)
+    sm_of = np.zeros(len(Z))
+    sm_of[k_all] = sm_all
+    bone, t = evaluation.bone, evaluation.t
+    deg = graph.degree
+    for c, (js, bs, v) in enumerate(chains):
+        if v < 0:
+            continue
+        bs = np.asarray(bs)
+        s = np.flatnonzero(np.isin(bone, bs))
+        other = np.flatnonzero(((bones == v).any(1)) & ~np.isin(np.arange(B), bs))
+        if not len(other) or len(bs) == B:
+            continue
+        P = objective.samples.points[s]
+        ws, sc = objective.samples.weights[s], objective.scale[s]
+        ij = bones[bone[s]]
+        S = t[s, None] * Z[ij[:, 0]] + (1 - t[s, None]) * Z[ij[:, 1]]
+        rest = np.setdiff1d(np.arange(B), bs)
+        nb, tn, _ = closest_on_bones(P, Z, bones[rest])
+        bi, bj = bones[rest[nb], 0], bones[rest[nb], 1]
+        Sn = tn[:, None] * Z[bi] + (1 - tn)[:, None] * Z[bj]
+        d_fit = float((fit_values(P, ws, Sn, objective.area, sc)
+                       - fit_values(P, ws, S, objective.area, sc)).sum())
+        d_cen = -float(cen[bs].sum())
+        d_sm = -float(sm_of[np.asarray(js)].sum())
+        if deg[v] == 3:                       # the junction becomes a chain joint
+            p, q = [int(bones[ob, 0] if bones[ob, 1] == v else bones[ob, 1]) for ob in other]
+            d_sm += float(smooth_triplets(Z, np.array([v]), np.array([p]), np.array([q]), D,
+                                          jacobian=None)[0])
+        d_con = -float(_contain(objective, X[bones[bs, 0]], X[bones[bs, 1]]).sum())
+        out[c] = (d_fit + w.centre * d_cen + w.smooth * d_sm + w.contain * d_con
+                  - w.joint * len(js) - w.branch)
+    return out

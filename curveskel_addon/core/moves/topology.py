@@ -18,6 +18,8 @@ split
 
 from __future__ import annotations
 
+from itertools import combinations
+
 import numpy as np
 
 from ..geometry.rows import row_norm
@@ -245,3 +247,41 @@ def split_long(graph, length):
     bone_map = np.stack([owner, np.arange(len(owner))], 1)
     return _rebuild(graph, joints, np.stack([start, end], 1), np.ones(len(joints), bool),
                     bone_map)
+
+
+def split_joint(graph, j, group, fraction=0.25):
+    """A junction ``j`` split in two: the bones from ``j`` to the neighbours ``group`` move to a
+    new joint, a quarter of the way from ``j`` towards those neighbours' centroid, joined to
+    ``j`` by a new bone (a four-way crossing becomes two three-way junctions and a rung). The
+    new bone explains what the moved bones explained."""
+    Z = np.asarray(graph.joints)
+    bones = graph.bones
+    J = len(Z)
+    group = np.asarray(group, np.int64)
+    moved = np.flatnonzero(((bones[:, 0] == j) & np.isin(bones[:, 1], group))
+                           | ((bones[:, 1] == j) & np.isin(bones[:, 0], group)))
+    new = Z[j].copy()
+    new[:3] += fraction * (Z[group, :3].mean(axis=0) - Z[j, :3])
+    joints = np.concatenate([Z, new[None]])
+    B2 = bones.copy()
+    B2[moved] = np.where(B2[moved] == j, J, B2[moved])
+    B2 = np.concatenate([B2, [[j, J]]])
+    nb = len(bones)
+    bone_map = np.concatenate([np.stack([np.arange(nb)] * 2, 1),
+                               np.stack([moved, np.full(len(moved), nb)], 1)])
+    return _rebuild(graph, joints, B2, np.ones(J + 1, bool), bone_map)
+
+
+def junction_splits(graph, max_degree=6):
+    """Every way to split a junction of four to ``max_degree`` bones into two of at least two
+    bones each: (joint, neighbours that move) pairs."""
+    out = []
+    nbrs = _neighbour_sets(graph)
+    for j in np.flatnonzero((graph.degree >= 4) & (graph.degree <= max_degree)):
+        ns = sorted(nbrs[j])
+        d = len(ns)
+        for size in range(2, d // 2 + 1):
+            for grp in combinations(ns[1:], size - 1) if 2 * size == d else combinations(ns, size):
+                grp = (ns[0],) + grp if 2 * size == d else grp
+                out.append((int(j), list(grp)))
+    return out

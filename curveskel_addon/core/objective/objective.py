@@ -1,39 +1,48 @@
-"""The objective J of a skeleton, and the Gauss-Newton model the solver steps with.
+"""The objective J of a skeleton on a mesh, and the Gauss-Newton model its minimisation uses.
 
     J = fit + w_centre centre + w_smooth smooth + w_contain contain
           + w_joint (number of joints) + w_branch (number of tips)
 
-(the terms: :mod:`.terms`). The mapping sigma of every surface sample is the closest point on
-the bones its Reeb region may use (:attr:`..graph.SkeletonGraph.pairs`), so J is a function of
-the skeleton alone. The two counts price the topology: a joint or a branch stays only where it
-explains the surface better than it costs (minimum description length; *Branch Pruning* sets
-``w_branch``).
+The terms (:mod:`.terms`) are scale-free sums of squared residuals; the two counts price the
+topology: a joint or a branch stays only where it explains the surface better than it costs
+(minimum description length). *Smoothness* scales ``w_smooth`` and *Branch Pruning*
+``w_branch`` (:func:`weights_for`); the other weights are the method's (:class:`..config.Weights`).
+
+sigma, each surface sample's point on the skeleton, is its nearest point on any bone: the fit
+then measures the distance from the surface to the silhouette, the union of the bones' round
+cones. Held to the Reeb regions instead (the paper's sigma), the balls of different parts
+overlap where the fit cannot see it and the silhouette bulges out of the surface (the horse's
+hindquarters: 2.1x CGAL's reconstruction error, 1.1x with the nearest bone); the centring and
+smoothness terms, not sigma, now keep a curve from wandering through the volume. The paper's E
+with its own sigma is computed for every stage all the same (``terms["E"]``).
+
+Each sample's unit of length, its part's thickness, is its distance from the first
+approximation (:meth:`Objective.for_first_approximation`): a property of the mesh and the first
+approximation, held through the search, so a part of any size weighs the same for the same
+relative error.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from ..mapping import closest_on_bones
-from ..state import candidates_from_pairs
+from ..config import CONFIG, Weights
+from ..geometry.segments import closest_on_bones
+from ..graph import candidates_from_pairs
 from . import terms as T
 
-__all__ = ["Weights", "Evaluation", "Objective"]
+__all__ = ["Evaluation", "Objective", "weights_for"]
 
 
-@dataclass(frozen=True)
-class Weights:
-    """J's weights (each term is already in units of D; see :mod:`.terms`)."""
-
-    centre: float = 1.0
-    smooth: float = 0.01
-    contain: float = 100.0
-    joint: float = 1e-6
-    branch: float = 0.0
+def weights_for(params) -> Weights:
+    """J's weights for the user's settings: *Smoothness* and *Branch Pruning* scale their
+    terms' units."""
+    w = CONFIG.weights
+    return replace(w, smooth=w.smooth * params.smoothness, branch=w.branch * params.prune)
 
 
 @dataclass(frozen=True)
@@ -54,28 +63,42 @@ class Objective:
     mesh : Mesh
     samples : Samples
         Surface quadrature points.
-    region : (s,) int
-        Reeb region of every sample.
     weights : Weights
     scale : (s,) float
-        The thickness of the part each sample lies on (its distance from the first
-        approximation: a property of the mesh and the first approximation, held through the
-        search): the fit's unit of length there, and, averaged over a bone's samples, the
-        centring's unit for that bone.
+        The thickness of the part each sample lies on: the fit's unit of length there, and,
+        averaged over a bone's samples, the centring's unit for that bone.
+    paper : (region (s,) int, graph) or None
+        The Reeb region of every sample and the first approximation, for the paper's E with
+        its own sigma (reported, not minimised).
     """
 
-    def __init__(self, mesh, samples, region, weights: Weights, scale):
+    def __init__(self, mesh, samples, weights: Weights, scale, paper=None):
         self.mesh, self.samples, self.weights = mesh, samples, weights
         self.scale = np.asarray(scale, np.float64)
-        self.region = np.asarray(region, np.int64)
-        self.n_regions = int(self.region.max(initial=-1)) + 1
         self.area = float(samples.weights.sum())
         self.D = mesh.D
         self.tree = cKDTree(samples.points)
+        self.region = None if paper is None else np.asarray(paper, np.int64)
+
+    @classmethod
+    def for_first_approximation(cls, mesh, samples, region, graph, weights, spacing):
+        """J for a mesh whose first approximation is ``graph``: each sample's thickness is its
+        distance from the first approximation, on the bones of its Reeb region (at least
+        ``CONFIG.objective.thickness_floor`` spacings)."""
+        n_reg = int(max(np.max(region, initial=-1), graph.pairs[:, 0].max(initial=-1))) + 1
+        cand = candidates_from_pairs(graph.pairs, region, n_reg)
+        _, _, d2 = closest_on_bones(samples.points, graph.joints, graph.bones, cand)
+        floor = CONFIG.objective.thickness_floor * spacing * mesh.D
+        return cls(mesh, samples, weights, np.maximum(np.sqrt(d2), floor), paper=region)
 
     def sigma(self, graph):
-        """(bone, t) of every sample: closest point on its region's bones."""
-        n_reg = max(self.n_regions, int(graph.pairs[:, 0].max(initial=-1)) + 1)
+        """(bone, t) of every sample: its nearest point on any bone."""
+        bone, t, _ = closest_on_bones(self.samples.points, graph.joints, graph.bones)
+        return bone, t
+
+    def paper_sigma(self, graph):
+        """The paper's sigma: each sample on the bones of its own Reeb region."""
+        n_reg = int(max(self.region.max(initial=-1), graph.pairs[:, 0].max(initial=-1))) + 1
         cand = candidates_from_pairs(graph.pairs, self.region, n_reg)
         bone, t, _ = closest_on_bones(self.samples.points, graph.joints, graph.bones, cand)
         return bone, t
@@ -104,20 +127,28 @@ class Objective:
         return out
 
     def evaluate(self, graph, sigma=None) -> Evaluation:
+        """J of ``graph`` (sigma: its own nearest points unless given)."""
         bone, t = self.sigma(graph) if sigma is None else sigma
         self._thick = self.thickness(graph, bone)
-        blocks = self._blocks(np.asarray(graph.joints), graph.bones, bone, t, False)
+        Z = np.asarray(graph.joints)
+        blocks = self._blocks(Z, graph.bones, bone, t, False)
         terms = {k: float(np.dot(r, r)) for k, (_, (r, _)) in blocks.items()}
-        rE = blocks["fit"][1][0] * (self.scale / self.D) ** 2
-        terms["E"] = float(np.dot(rE, rE))            # the paper's E, in units of D
+        value = sum(wt * terms[k] for k, (wt, _) in blocks.items())
         terms["joints"] = float(graph.n_joints)
         terms["tips"] = float(graph.n_leaves)
-        value = sum(wt * terms[k] for k, (wt, _) in blocks.items())  # (E: not a term of J)
         value += self.weights.joint * terms["joints"] + self.weights.branch * terms["tips"]
         return Evaluation(float(value), terms, bone, t)
 
+    def paper_energy(self, graph) -> float:
+        """The paper's E (eq. 8 over the samples, its own sigma), in units of D: reported."""
+        if self.region is None:
+            return float("nan")
+        bone, t = self.paper_sigma(graph)
+        return T.paper_energy(np.asarray(graph.joints), self.samples, graph.bones, bone, t,
+                              self.area, self.D)
+
     def model(self, graph, sigma):
-        """Gauss-Newton model at ``graph`` with sigma held: (H (4J, 4J), g (4J,)), with
+        """Gauss-Newton model at ``graph`` with sigma held: (H (4J, 4J) sparse, g (4J,)), with
         ``g`` the exact gradient of the continuous part of J and ``H`` its Gauss-Newton
         matrix."""
         Z = np.asarray(graph.joints)

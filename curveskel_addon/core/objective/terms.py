@@ -8,12 +8,16 @@ value is ``sum rho^2`` and its gradient ``2 (d rho/dz)^T rho``. The mapping sigm
 sample's bone and parameter ``t``) is held fixed here: :mod:`.objective` chooses it.
 
 fit
-    The paper's E (eq. 8) over the surface: ``(1/A) sum_s w_s e_s^2 / L_s^4`` with
-    ``e_s = |p_s - sigma_s|^2 - r(sigma_s)^2``; ``w_s`` the area of quadrature point ``p_s``
-    (:mod:`..geometry.samples`), A the surface area, ``L_s`` a length: D gives the paper's E in
-    units of D (reported), the thickness of the sample's part gives each part the same weight
-    for the same relative error (J's fit term: in units of D a finger's errors count 10^4
-    times less than a torso's ten times thicker).
+    How far each surface point lies from the silhouette of its skeleton point, the paper's
+    own residual: ``(1/A) sum_s w_s h((|p_s - sigma_s| - r(sigma_s)) / L_s)``, ``h`` the
+    pseudo-Huber loss (``z^2`` within a thickness, ``2|z|`` beyond), ``w_s`` the
+    area of quadrature point ``p_s`` (:mod:`..geometry.samples`), A the surface area, ``L_s``
+    the thickness of the sample's part (each part the same weight for the same relative
+    error). The paper's E (eq. 8) squares the squared distances, ``(|p - sigma|^2 - r^2)^2``:
+    it is computed and reported (:func:`paper_energy`), but as J's fit it weighs a flat
+    section's far side so much that the balls bulge out of its near sides (the horse's
+    hindquarters: the silhouette 0.02 D out), and in units of D a finger's errors count 10^4
+    times less than a torso's ten times thicker.
 centre
     How far the middle of each bone lies from the area centroid of the mesh's cross-section
     through it, across the bone (:mod:`..geometry.sections`), relative to its part's
@@ -23,10 +27,10 @@ centre
     distance from the sections' centres, each in units of its part's thickness. ``t_b`` is the
     mesh's, not the skeleton's: a bone cannot lower the term by changing its radius.
 smooth
-    How much the chains turn, and their radii bend: ``sum_k (h_k / D) (1 - cos theta_k) +
+    How much the chains turn, and their radii bend: ``sum_k (1 - cos theta_k) +
     (r_k - (r_a + r_b) / 2)^2 / (m_k D)`` over chain joints, ``theta_k`` the angle between a
-    joint's two bones (0 on a straight chain, 1 per joint of a right-angled zig-zag, whatever
-    the size), ``h_k`` and ``m_k`` the harmonic and arithmetic means of its bone lengths.
+    joint's two bones (0 straight on, 1 at a right angle, whatever the size), ``m_k`` the mean
+    of its two bone lengths (the radius's second difference per length).
 contain
     How far the bones leave the mesh: at points along every bone that lie outside (the exact
     inside test), their height above the tangent plane of the nearest surface sample:
@@ -38,14 +42,14 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ..config import CONFIG
 from ..geometry.rows import row_norm
-from ..geometry.sections import cross_sections
 
-__all__ = ["fit_term", "centre_term", "bone_centres", "smooth_term", "smooth_triplets",
+__all__ = ["fit_term", "fit_values", "fit_residuals", "paper_energy", "centre_term", "bone_centres", "smooth_term", "smooth_triplets",
            "contain_term", "chain_neighbours", "BONE_POINTS"]
 
-#: Points per bone (ends included) where containment is measured.
-BONE_POINTS = np.linspace(0.0, 1.0, 9)
+#: Where along every bone (ends included) containment is measured.
+BONE_POINTS = np.linspace(0.0, 1.0, CONFIG.objective.bone_points)
 
 
 def _jac(rows, cols, vals, m, J):
@@ -65,8 +69,44 @@ def chain_neighbours(bones, n_joints):
     return k, other[order][start[k]], other[order][start[k] + 1]
 
 
+def _pseudo_huber(z):
+    """``psi(z)`` with ``psi^2 = 2 (sqrt(1 + z^2) - 1)``, sign of z (about z^2 for small z,
+    2|z| for large), and ``dpsi/dz``: a least-squares residual whose square is the
+    pseudo-Huber loss."""
+    q = np.sqrt(1.0 + z * z)
+    psi = np.sign(z) * np.sqrt(2.0 * (q - 1.0))
+    small = np.abs(z) < 1e-4
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = np.where(small, 1.0 - 0.375 * z * z, np.abs(z) / (q * np.where(small, 1.0, np.abs(psi))))
+    return np.where(small, z * (1.0 - 0.125 * z * z), psi), d
+
+
+def fit_residuals(Z, samples, bones, bone, t):
+    """Per sample: ``d = p - sigma``, ``rho = r(sigma)`` and the paper's ``e = |d|^2 - rho^2``."""
+    ij = bones[bone]
+    S = t[:, None] * Z[ij[:, 0]] + (1.0 - t)[:, None] * Z[ij[:, 1]]
+    d = samples.points - S[:, :3]
+    rho = S[:, 3]
+    return d, rho, np.einsum("ij,ij->i", d, d) - rho * rho
+
+
+def paper_energy(Z, samples, bones, bone, t, area, D) -> float:
+    """The paper's E (eq. 8) over the samples, in units of D: ``(1/A) sum w e^2 / D^4``."""
+    e = fit_residuals(Z, samples, bones, bone, t)[2]
+    return float(np.dot(samples.weights, e * e)) / (area * D ** 4)
+
+
+def fit_values(P, w, S, area, scale):
+    """Each sample's share of the fit: ``w/A h((|p - s| - r(s)) / scale)`` for skeleton
+    points ``S`` (rows x, y, z, r); ``h`` the pseudo-Huber loss (see :func:`fit_term`)."""
+    z = (row_norm(P - S[:, :3]) - S[:, 3]) / scale
+    return w / area * 2.0 * (np.sqrt(1.0 + z * z) - 1.0)
+
+
 def fit_term(Z, samples, bones, bone, t, area, scale, *, jacobian=True):
-    """Residuals ``sqrt(w_s / A) e_s / scale_s^2`` (and Jacobian) of the fit E.
+    """Residuals ``sqrt(w_s / A) psi((|p_s - sigma_s| - r(sigma_s)) / scale_s)`` (and Jacobian),
+    ``psi^2`` the pseudo-Huber loss: squares for errors within the part's thickness, linear
+    beyond (a point sigma maps far from its bone, at a junction, must not inflate the ball).
 
     Parameters
     ----------
@@ -78,21 +118,21 @@ def fit_term(Z, samples, bones, bone, t, area, scale, *, jacobian=True):
         sigma of every sample: ``t`` at ``bones[bone, 0]``, ``1 - t`` at the other end.
     area : float
     scale : float or (s,) float
-        The length each sample's residual is measured in (D: the paper's E in units of D;
-        the part's own thickness: a relative fit, see the module docstring).
+        The thickness of each sample's part: the unit its distance is measured in.
     """
     ij = bones[bone]
     i, j = ij[:, 0], ij[:, 1]
-    S = t[:, None] * Z[i] + (1.0 - t)[:, None] * Z[j]
-    d = samples.points - S[:, :3]
-    rho = S[:, 3]
-    e = np.einsum("ij,ij->i", d, d) - rho * rho
-    c = np.sqrt(samples.weights / area) / np.asarray(scale, np.float64) ** 2
-    res = c * e
+    d, rho, _ = fit_residuals(Z, samples, bones, bone, t)
+    dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+    sc = np.asarray(scale, np.float64)
+    z = (dist - rho) / sc
+    psi, dpsi = _pseudo_huber(z)
+    c = np.sqrt(samples.weights / area)
+    res = c * psi
     if not jacobian:
         return res, None
     n, J = len(t), len(Z)
-    G = np.column_stack([d, rho]) * (-2.0 * c)[:, None]
+    G = np.column_stack([d / np.maximum(dist, 1e-300)[:, None], np.ones(n)]) * (-c * dpsi / sc)[:, None]
     rows = np.repeat(np.arange(n), 4)
     col4 = np.arange(4)
     return res, _jac([rows, rows], [(4 * i[:, None] + col4).ravel(), (4 * j[:, None] + col4).ravel()],
@@ -109,20 +149,16 @@ def _fade(x, lo, hi):
     return t * q, d
 
 
-#: A section whose rms spread exceeds OWN[0] times the part's thickness is fading out (not the
-#: part's own: at a limb's root the plane cuts the body too), gone at OWN[1]; loops are looked
-#: for within REACH times the thickness (a disc's spread is 0.71 of its radius).
-OWN = (1.5, 3.0)
-REACH = 6.0
 
 
 def centre_term(Z, bones, mesh, D, thick, *, jacobian=True):
     """Residuals ``sqrt(l_b / D) f_b (q_b - c_b) / t_b`` (3 per bone whose section was found)
     and their Jacobian: ``q_b`` the bone's middle, ``c_b`` the centroid of the cross-section
     through it across the bone, ``l_b`` the bone's length, ``t_b = thick[b]`` the thickness of
-    its part (from its Reeb regions; fixed during a minimisation), ``f_b`` fading the section
-    out where it is not the part's own: its rms spread from ``OWN[0]`` to ``OWN[1]`` times
-    ``t_b``. ``mesh`` provides ``V``, ``F`` and ``face_tree``.
+    its part (the mean thickness of the samples mapped to it), ``f_b`` fading the section out
+    where it is not the part's own: its rms spread from ``own_section[0]`` to
+    ``own_section[1]`` times ``t_b`` (:class:`..config.ObjectiveConfig`). ``mesh`` is a
+    :class:`..mesh.Mesh`.
 
     The middle of every bone, not the joints: a long bone cutting across a part is off its
     sections' centres there however well its two ends are placed.
@@ -144,9 +180,9 @@ def bone_centres(A, B, bones, mesh, D, thick, n_joints, *, jacobian=True):
     tb = np.asarray(thick, np.float64)[rows_of]
     n = T / L[:, None]
     Q = 0.5 * (A + B)
-    sec = cross_sections(mesh.V, mesh.F, Q, n, REACH * tb, tree=mesh.face_tree,
-                         jacobian=bool(jacobian))
-    fq, dfq = _fade(sec.spread / tb, *OWN)
+    cfg = CONFIG.objective
+    sec = mesh.sections(Q, n, cfg.section_reach * tb, jacobian=bool(jacobian))
+    fq, dfq = _fade(sec.spread / tb, *cfg.own_section)
     f = np.flatnonzero(sec.found & (fq > 0))
     n, L, tb, fq, dfq, Q, rows_of = n[f], L[f], tb[f], fq[f], dfq[f], Q[f], rows_of[f]
     off = Q - sec.centroid[f]
@@ -194,13 +230,15 @@ def smooth_triplets(Z, k, a, b, D, *, jacobian=True):
     """Residuals of the chains' smoothness, 4 per chain joint ``k`` with neighbours ``a``,
     ``b``, and their Jacobian:
 
-    * ``sqrt(h_k / (2D)) (u_out - u_in)``: their squares sum to ``(h_k / D)(1 - cos theta_k)``
-      (``h_k`` the harmonic mean of the joint's two bone lengths: a bend's weight vanishes with
-      its shorter bone, so a bone shrinking to nothing cannot make the turn's direction, and J,
-      jump);
-    * ``(r_k - (r_a + r_b) / 2) / sqrt(m_k D)`` (``m_k`` their mean): the radius's second
-      difference along the chain, per length (a linear taper costs nothing). It also fixes the
-      radius of a joint the surface hardly maps near (the fit alone leaves it free).
+    * ``(u_out - u_in) / sqrt(2)``: their squares sum to ``1 - cos theta_k``, the turn at the
+      joint: 0 straight on, 1 at a right angle, 2 for a hairpin, whatever the bones' lengths
+      (weighting a turn by a length would let a knot of short bones, or a bone stretched to no
+      end, lower it).
+    * ``(r_k - (r_a + r_b) / 2) / sqrt(m_k D)``: the radius's second difference along the
+      chain, per length (a linear taper costs nothing). It also fixes the radius of a joint
+      the surface hardly maps near (the fit alone leaves it free).
+
+    ``jacobian=None`` returns the value per given joint instead (for the moves' estimates).
     """
     J, n_in = len(Z), len(k)
     X = Z[:, :3]
@@ -211,42 +249,36 @@ def smooth_triplets(Z, k, a, b, D, *, jacobian=True):
     k, a, b, vin, vout, lin, lout = k[ok], a[ok], b[ok], vin[ok], vout[ok], lin[ok], lout[ok]
     rows_of = rows_of[ok]
     uin, uout = vin / lin[:, None], vout / lout[:, None]
-    ell = 2.0 * lin * lout / (lin + lout)
     mean = 0.5 * (lin + lout)
-    sw = np.sqrt(ell / (2.0 * D))
+    sw = np.full(len(k), np.sqrt(0.5))
     du = uout - uin
     dr = Z[k, 3] - 0.5 * (Z[a, 3] + Z[b, 3])
     sr = 1.0 / np.sqrt(mean * D)
     m = len(k)
     res = np.concatenate([(sw[:, None] * du).ravel(), sr * dr])
-    if jacobian is None:                     # per triplet: the value of each given row
-        val = (sw[:, None] * du) ** 2
-        return np.bincount(rows_of, val.sum(1) + (sr * dr) ** 2, n_in)
+    if jacobian is None:
+        return np.bincount(rows_of, ((sw[:, None] * du) ** 2).sum(1) + (sr * dr) ** 2, n_in)
     if not jacobian:
         return res, None
     eye = np.eye(3)
     Pin = (eye - uin[:, :, None] * uin[:, None, :]) / lin[:, None, None]     # du_in/dx_k
     Pout = (eye - uout[:, :, None] * uout[:, None, :]) / lout[:, None, None]  # du_out/dx_b
-    g = 1.0 / (2.0 * np.sqrt(2.0 * ell * D))                  # d sqrt(l / (2D)) / dl
-    # dh/dlin = 2 lout^2 / (lin + lout)^2 (and likewise); dlin/dx_k = uin, dlin/dx_a = -uin,
-    # dlout/dx_b = uout, dlout/dx_k = -uout
-    gi = g * 2.0 * lout ** 2 / (lin + lout) ** 2
-    go = g * 2.0 * lin ** 2 / (lin + lout) ** 2
-    dsw = {"k": gi[:, None] * uin - go[:, None] * uout, "a": -gi[:, None] * uin,
-           "b": go[:, None] * uout}
+    # d sqrt(D / m) / dm = -sw / (2 m);  d sr / dm = -sr / (2 m);  dm = (dlin + dlout) / 2,
+    # dlin/dx_k = uin, dlin/dx_a = -uin, dlout/dx_b = uout, dlout/dx_k = -uout
+    dmk, dma, dmb = 0.5 * (uin - uout), -0.5 * uin, 0.5 * uout
+    gw = np.zeros(len(k))
+    gr = -sr / (2.0 * mean) * dr
     dres = {"k": -Pout - Pin, "a": Pin, "b": Pout}
-    # d sr / d mean = -sr / (2 mean); dmean = (dlin + dlout) / 2
-    gm = -0.5 * sr / mean * dr * 0.5
-    dmean = {"k": gm[:, None] * (uin - uout), "a": -gm[:, None] * uin, "b": gm[:, None] * uout}
+    dm = {"k": dmk, "a": dma, "b": dmb}
     rows, cols, vals = [], [], []
     r3 = np.repeat(3 * np.arange(m)[:, None] + np.arange(3), 3, axis=1)          # (m, 9)
     rr = 3 * m + np.arange(m)
     for who, idx in (("k", k), ("a", a), ("b", b)):
-        blk = sw[:, None, None] * dres[who] + du[:, :, None] * dsw[who][:, None, :]
+        blk = sw[:, None, None] * dres[who] + du[:, :, None] * (gw[:, None] * dm[who])[:, None, :]
         c3 = 4 * idx[:, None] + np.arange(3)
         rows += [r3.ravel(), np.repeat(rr, 3), rr]
         cols += [np.tile(c3, (1, 3)).ravel(), c3.ravel(), 4 * idx + 3]
-        vals += [blk.reshape(m, 9).ravel(), dmean[who].ravel(),
+        vals += [blk.reshape(m, 9).ravel(), (gr[:, None] * dm[who]).ravel(),
                  sr * (1.0 if who == "k" else -0.5)]
     return res, _jac(rows, cols, vals, 4 * m, J)
 
@@ -258,7 +290,7 @@ def contain_term(Z, bones, inside, tree, points, normals, D, *, jacobian=True):
     surface sample (``tree``: a KD-tree of ``points``, with their ``normals``); and their
     Jacobian (the nearest sample held). Zero for a point inside; at the surface, where it
     leaves, ``h`` is zero too."""
-    J, B = len(Z), len(bones)
+    J = len(Z)
     u = BONE_POINTS
     m = len(u)
     X = Z[:, :3]

@@ -18,8 +18,8 @@ interval of ``lam`` on which every radius stays >= 0 (the exact minimiser of the
 interval; ``lam = 0`` is in it, so E cannot increase). Counters of both cases are kept in the
 optional ``stats`` dict for reports.
 
-With ``refit_mapping`` the mapping sigma is re-fitted (:mod:`..refit`) after every ``refit_every``
-steps; the eq. 30 rule then compares E across the step and the re-fit together.
+The mapping sigma is the first approximation's, held (the paper's): each vertex on the bones of
+its Reeb region (:mod:`..initialise.reeb`).
 """
 
 from __future__ import annotations
@@ -28,12 +28,11 @@ from typing import Iterator
 
 import numpy as np
 
-from ..energy import energy, energy_and_gradient, line_quartic
-from ..line_search import minimize_quartic, minimize_quartic_on
-from ..problem import FitProblem, SolverState
-from ..refit import bone_neighbours, refit_mapping as _refit
+from .energy import energy, energy_and_gradient, line_quartic
+from .line_search import minimize_quartic, minimize_quartic_on
+from .problem import FitProblem, SolverState
 
-__all__ = ["paper_steps", "radius_interval"]
+__all__ = ["paper_steps", "paper_fit", "radius_interval"]
 
 
 def radius_interval(r: np.ndarray, g_r: np.ndarray) -> tuple[float, float]:
@@ -58,8 +57,7 @@ def radius_interval(r: np.ndarray, g_r: np.ndarray) -> tuple[float, float]:
     return min(lo, 0.0), max(hi, 0.0)
 
 
-def paper_steps(problem: FitProblem, *, max_iterations: int = 1000, tolerance: float = 1e-3,
-                refit_mapping: bool = False, refit_every: int = 1,
+def paper_steps(problem: FitProblem, *, max_iterations: int, tolerance: float,
                 stats: dict | None = None) -> Iterator[SolverState]:
     """Gradient descent with exact line search, one iteration per ``next()``.
 
@@ -71,13 +69,9 @@ def paper_steps(problem: FitProblem, *, max_iterations: int = 1000, tolerance: f
         Stop after this many iterations.
     tolerance : float
         Eq. 31: stop when one iteration changes E by less than ``tolerance * E0``.
-    refit_mapping : bool
-        Re-fit sigma between steps (not in the paper).
-    refit_every : int
-        Re-fit after every ``refit_every``-th step.
     stats : dict, optional
         Filled with counters: ``"flips"`` (steps whose negative radii were flipped),
-        ``"restricted"`` (steps restricted to keep radii >= 0), ``"refit_changed"`` (vertices).
+        ``"restricted"`` (steps restricted to keep radii >= 0).
 
     Yields
     ------
@@ -92,7 +86,7 @@ def paper_steps(problem: FitProblem, *, max_iterations: int = 1000, tolerance: f
     (True, True)
     """
     stats = {} if stats is None else stats
-    stats.update(flips=0, restricted=0, refit_changed=0)
+    stats.update(flips=0, restricted=0)
     pts, w, bones = problem.points, problem.weights, problem.bones
     joints = np.array(problem.joints, dtype=np.float64)
     bone = np.array(problem.bone, dtype=np.int64)
@@ -106,7 +100,6 @@ def paper_steps(problem: FitProblem, *, max_iterations: int = 1000, tolerance: f
     yield SolverState(0, joints, bone, t, E0, done)
     if done:
         return
-    neighbours = bone_neighbours(bones, len(joints)) if refit_mapping else None
     E = E0
     for k in range(1, max_iterations + 1):
         pr = view(joints, bone, t)
@@ -131,12 +124,23 @@ def paper_steps(problem: FitProblem, *, max_iterations: int = 1000, tolerance: f
                 stats["restricted"] += 1
         if E_new > E:            # only by round-off near a minimum: never report an increase
             new, E_new = joints, E
-        if refit_mapping and k % max(int(refit_every), 1) == 0:
-            bone, t, e, changed = _refit(view(new, bone, t), neighbours)
-            stats["refit_changed"] += changed
-            E_new = float(np.dot(w, e * e))       # <= E_new by construction
         done = abs(E - E_new) < tolerance * E0 or k == max_iterations
         joints, E = new, E_new
         yield SolverState(k, joints, bone, t, E, done)
         if done:
             return
+
+
+def paper_fit(V, graph, bone, t, *, max_iterations, tolerance):
+    """The paper's fit of its first approximation: yields ``(stage, joints, bone, t, E,
+    iterations)`` for the first approximation ("initialise", E0) and the fitted skeleton
+    ("fit"): E (eq. 20) is the vertex sum, every vertex weighing 1."""
+    pr = FitProblem(np.asarray(V, np.float64), np.ones(len(V)), np.array(graph.joints),
+                    graph.bones, np.asarray(bone, np.int64), np.asarray(t, np.float64))
+    last = None
+    for state in paper_steps(pr, max_iterations=max_iterations, tolerance=tolerance):
+        if state.iteration == 0:
+            yield "initialise", state.joints, state.bone, state.t, float(state.energy), 0
+        last = state
+    if last is not None and last.iteration > 0:
+        yield "fit", last.joints, last.bone, last.t, float(last.energy), int(last.iteration)

@@ -53,8 +53,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
-from .errors import CurveSkelError
-from .mesh_graph import adjacency, edge_csr
+from ..errors import CurveSkelError
+from ..geometry.mesh_graph import adjacency, edge_csr
 
 __all__ = ["find_pole", "geodesic_from", "edge_graph", "graph_with", "bilateral_plane",
            "principal_mirrors", "POLE_SLACK", "MIRROR_TOL"]

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import CurveSkelError
+from ..errors import CurveSkelError
 
 __all__ = ["min_enclosing_ball", "ball_through", "size_of"]
 

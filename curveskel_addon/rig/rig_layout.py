@@ -32,7 +32,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 
-from .errors import CurveSkelError
+from ..core.errors import CurveSkelError
 from .graph_root import central_joints
 
 __all__ = ["RigLayout", "rig_layout", "BLEND_NONE", "BLEND_SYMMETRIC", "BLEND_HUB", "MirrorPlane",

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import CurveSkelError
+from .core.errors import CurveSkelError
+from .core.mesh_input import triangulate
 
 __all__ = ["read_mesh", "MESH_SUFFIXES"]
 
@@ -138,7 +139,6 @@ def _triangles(P) -> np.ndarray:
     """(m, 3) int64 triangles of polygons ((m, k) array, or a list of index lists). Quads are
     split as trimesh split them, (0, 1, 2) then (2, 3, 0), every first half before every second
     (the triangles this module gave before it read OBJ itself); other polygons are fanned."""
-    from .mesh_input import triangulate
 
     if isinstance(P, list):
         if not P:

@@ -32,8 +32,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
-from .errors import CurveSkelError
-from .mapping import closest_bone, closest_on_bones
+from ..core.errors import CurveSkelError
+from ..core.geometry.segments import closest_bone, closest_on_bones
 from .rig_layout import BLEND_HUB, BLEND_SYMMETRIC, RigLayout
 
 __all__ = ["skin_weights", "smooth_weights", "smoothing_iterations", "smoothstep", "project_on_bones",

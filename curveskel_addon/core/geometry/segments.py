@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import CurveSkelError
+from ..errors import CurveSkelError
 from .rows import col_max, col_min, mul_rows, take_rows
 
 __all__ = ["closest_on_bones", "closest_bone"]

@@ -72,14 +72,14 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
-from .errors import CurveSkelError
-from .mapping import closest_on_bones
+from ..errors import CurveSkelError
+from ..geometry.segments import closest_on_bones
 from .interior import InteriorGrid
-from .meb import min_enclosing_ball, size_of
-from .mesh_graph import edge_csr, edge_ids, edge_lengths, edge_table
+from ..geometry.meb import min_enclosing_ball, size_of
+from ..geometry.mesh_graph import edge_csr, edge_ids, edge_lengths, edge_table
 from .pole import find_pole
-from .rows import next_corners
-from .vertex_area import vertex_areas
+from ..geometry.rows import next_corners
+from ..geometry.areas import vertex_areas
 
 #: f through the inside as well as over the surface on components with handles (:mod:`.interior`).
 INTERIOR_PATHS = True

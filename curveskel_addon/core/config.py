@@ -1,0 +1,135 @@
+"""Every constant of the method, in one place, grouped by stage, each with its reason.
+
+J's weights (:class:`Weights`) say how the objective's terms trade against each other; the
+user's settings scale two of them (*Smoothness*, *Branch Pruning*). Everything else here is a
+resolution, a tolerance or a budget: none names a mesh, and none decides a shape on its own
+(every move is kept or refused by J). ``tests/core/test_config.py`` counts them: at most 30
+outside the weights, and no other named number in the core.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+__all__ = ["CONFIG", "Config", "Weights", "count_constants"]
+
+
+@dataclass(frozen=True)
+class Weights:
+    """J's weights; every term is already scale-free (:mod:`.objective.terms`)."""
+
+    #: the centring term against the fit (both relative to the part's thickness: an offset of
+    #: a tenth of the thickness along the whole curve costs what a tenth of a thickness of
+    #: misfit over the whole surface costs)
+    centre: float = 1.0
+    #: one unit of *Smoothness*: a right-angle turn costs what a 1 % misfit of the whole
+    #: surface does
+    smooth: float = 0.01
+    #: containment: a barrier, orders above the other terms (a bone leaving the mesh by a
+    #: hundredth of D along its whole length outweighs any fit it buys)
+    contain: float = 100.0
+    #: the price of a joint: a chain joint stays only where it explains a bend
+    joint: float = 1e-4
+    #: one unit of *Branch Pruning*: the price of a branch (a tip)
+    branch: float = 0.01
+
+
+@dataclass(frozen=True)
+class InputConfig:
+    """Cleaning the mesh (:mod:`.mesh_input`); tolerances are shares of the mesh's size."""
+
+    #: vertices on open edges closer than this are one vertex; faces thinner have no area
+    merge_tolerance: float = 1e-5
+    #: a mesh within this of one plane has no volume to skeletonize
+    flat_tolerance: float = 1e-5
+    #: a part is turned over only when its signed volume is clearly negative: below minus this
+    #: share of the sum of the absolute per-face volumes
+    orient_margin: float = 1e-3
+
+
+@dataclass(frozen=True)
+class InitialConfig:
+    """The first approximation (:mod:`.initialise`)."""
+
+    #: levels of f at least (a small part still gets a chain)
+    min_levels: int = 6
+    #: levels of f at most (cost), four times as many when refined to find a lost handle
+    max_levels: int = 400
+    #: halvings of the spacing to find a handle the Reeb graph lost
+    max_refinements: int = 3
+    #: a cap region lower than this share of a spacing is below the level set's resolution:
+    #: merged into the region under it
+    cap_fraction: float = 0.5
+    #: cubes along the longest extent of the grid whose inside paths let f go round a hole
+    interior_resolution: int = 64
+    #: pole candidates: graph distance within this share of the maximum (a tip, not a side)
+    pole_slack: float = 0.1
+    #: a shape is its own mirror image when its reflected points lie within this of it (in
+    #: rms radii): then f grows from the pole and its twin, so paired limbs branch alike
+    mirror_tolerance: float = 0.038
+    #: points the mirror test uses at most
+    mirror_points: int = 4000
+    #: bones shorter than this share of a spacing are contracted: two contours that close
+    #: are one place, and a bone of almost no length has no direction
+    contract: float = 0.5
+
+
+@dataclass(frozen=True)
+class ObjectiveConfig:
+    """J's sampling and its terms' extents (:mod:`.objective`)."""
+
+    #: the surface quadrature's sub-triangles are at most this share of a spacing across
+    sample_length: float = 0.5
+    #: surface samples at most (a uniform subset above: the same integral, less work)
+    max_samples: int = 30_000
+    #: a part's thickness is at least this share of a spacing (the fit's unit there)
+    thickness_floor: float = 0.25
+    #: a cross-section whose rms spread exceeds the first times the part's thickness fades
+    #: out of the centring, gone at the second (not the part's own: a limb's root cuts the
+    #: body; a disc's spread is 0.71 of its radius)
+    own_section: tuple = (1.3, 2.0)
+    #: cross-section loops are looked for within this many thicknesses
+    section_reach: float = 4.0
+    #: points along every bone (ends included) where containment is measured
+    bone_points: int = 9
+
+
+@dataclass(frozen=True)
+class SearchConfig:
+    """The search (:mod:`.search`, :mod:`.objective.minimise`)."""
+
+    #: rounds of moves at most
+    rounds: int = 30
+    #: minimisation steps after a move before J decides on it
+    refit_steps: int = 3
+    #: when a batch of moves fails, this many are tried alone
+    singles: int = 8
+    #: a minimisation between rounds stops when a step lowers J by less than this share
+    round_tolerance: float = 1e-3
+    #: the last minimisation stops when a step lowers J by less than this share: converged,
+    #: so a tiny change of the input moves the result as little
+    final_tolerance: float = 1e-6
+
+
+@dataclass(frozen=True)
+class Config:
+    weights: Weights = field(default_factory=Weights)
+    input: InputConfig = field(default_factory=InputConfig)
+    initial: InitialConfig = field(default_factory=InitialConfig)
+    objective: ObjectiveConfig = field(default_factory=ObjectiveConfig)
+    search: SearchConfig = field(default_factory=SearchConfig)
+
+
+CONFIG = Config()
+
+
+def count_constants(config: Config = CONFIG) -> int:
+    """The constants outside J's weights (a tuple counts each of its numbers)."""
+    n = 0
+    for group in fields(config):
+        if group.name == "weights":
+            continue
+        for f in fields(getattr(config, group.name)):
+            v = getattr(getattr(config, group.name), f.name)
+            n += len(v) if isinstance(v, tuple) else 1
+    return n
