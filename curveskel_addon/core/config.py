@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
 
-__all__ = ["CONFIG", "Config", "Weights", "count_constants"]
+__all__ = ["CONFIG", "Config", "Weights", "Numerics", "count_constants"]
 
 
 @dataclass(frozen=True)
@@ -45,6 +45,9 @@ class InputConfig:
     #: a part is turned over only when its signed volume is clearly negative: below minus this
     #: share of the sum of the absolute per-face volumes
     orient_margin: float = 1e-3
+    #: rays that vote whether a point is inside (odd: a ray grazing an edge spoils one count,
+    #: the majority holds)
+    inside_rays: int = 3
 
 
 @dataclass(frozen=True)
@@ -72,6 +75,12 @@ class InitialConfig:
     #: bones shorter than this share of a spacing are contracted: two contours that close
     #: are one place, and a bone of almost no length has no direction
     contract: float = 0.5
+    #: values within this share of the largest are tied (a mirror image's distance): told
+    #: apart by the side of a plane of the shape, not by the coordinates' last bits
+    tie: float = 1e-6
+    #: a bone the first approximation leaves with no length gets this share of the size
+    #: (every bone has a direction)
+    nudge: float = 1e-6
 
 
 @dataclass(frozen=True)
@@ -92,6 +101,10 @@ class ObjectiveConfig:
     section_reach: float = 4.0
     #: points along every bone (ends included) where containment is measured
     bone_points: int = 9
+    #: the uniform subset of samples hashes each sample's geodesic distance this many times
+    #: round [0, 1): a sample's pick depends on its own distance only, so a tiny move of the
+    #: vertices swaps a pick only where it is within rounding of the cut
+    draw_cycles: float = 9973.0
 
 
 @dataclass(frozen=True)
@@ -109,6 +122,32 @@ class SearchConfig:
     #: the last minimisation stops when a step lowers J by less than this share: converged,
     #: so a tiny change of the input moves the result as little
     final_tolerance: float = 1e-6
+    #: a junction split in two: the new joint starts this share of the way towards its bones'
+    #: far ends (then J's minimisation places it)
+    split_fraction: float = 0.25
+
+
+@dataclass(frozen=True)
+class Numerics:
+    """How the work is laid out, not what it computes: none of these changes a skeleton
+    (``tests/core/test_config.py`` runs the pipeline with other values and compares), only
+    speed and memory. Not counted among the method's constants."""
+
+    #: elements of an array op at most (point-bone pairs, ray-triangle pairs): bounds memory
+    block: int = 1 << 18
+    #: faces per leaf of the face tree (cross-sections' search)
+    tree_leaf: int = 4
+    #: bits per axis of the Morton order the face tree sorts its faces by
+    morton_bits: int = 10
+    #: the inside test's ray grid: about this many faces per cell, cells this much coarser
+    #: from one level to the next, and at least this many median triangles wide
+    grid_cell_faces: float = 2.0
+    grid_level: float = 1.5
+    grid_side_median: float = 1.0
+    #: the exact minimum enclosing ball's working set: its size at first and the violators
+    #: added per round; its containment tolerance (squared distances, relative)
+    meb_batch: int = 32
+    meb_tolerance: float = 1e-12
 
 
 @dataclass(frozen=True)
@@ -118,6 +157,7 @@ class Config:
     initial: InitialConfig = field(default_factory=InitialConfig)
     objective: ObjectiveConfig = field(default_factory=ObjectiveConfig)
     search: SearchConfig = field(default_factory=SearchConfig)
+    numerics: Numerics = field(default_factory=Numerics)
 
 
 CONFIG = Config()
@@ -127,7 +167,7 @@ def count_constants(config: Config = CONFIG) -> int:
     """The constants outside J's weights (a tuple counts each of its numbers)."""
     n = 0
     for group in fields(config):
-        if group.name == "weights":
+        if group.name in ("weights", "numerics"):
             continue
         for f in fields(getattr(config, group.name)):
             v = getattr(getattr(config, group.name), f.name)

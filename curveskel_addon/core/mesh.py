@@ -16,7 +16,7 @@ from .geometry.face_tree import FaceTree
 from .geometry.inside import InsideTest
 from .geometry.mesh_graph import edge_table, faces_around
 from .geometry.rows import col_max, col_min, row_cross, row_norm
-from .geometry.sections import Sections, cross_sections, vertex_edges
+from .geometry.sections import Sections, cross_sections
 from .geometry.meb import size_of
 
 __all__ = ["Mesh"]
@@ -72,11 +72,6 @@ class Mesh:
     def face_of(self) -> tuple:
         """(indptr, faces): the faces round each vertex."""
         return faces_around(self.F, len(self.V))
-
-    @cached_property
-    def vertex_edge(self) -> np.ndarray:
-        """(n,) the longest side of the faces round each vertex."""
-        return vertex_edges(self.V, self.F, self.face_of)
 
     @cached_property
     def inside(self) -> InsideTest:

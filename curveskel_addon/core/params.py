@@ -6,6 +6,7 @@ Every parameter is checked here, once, whoever builds it (API, command line, Ble
 
 from __future__ import annotations
 
+import difflib
 import math
 import numbers
 from dataclasses import asdict, dataclass, fields
@@ -187,8 +188,6 @@ def _range_text(low, high) -> str:
 
 
 def _unknown_message(unknown, names) -> str:
-    import difflib
-
     out = []
     for k in unknown:
         close = difflib.get_close_matches(str(k), names, n=1)

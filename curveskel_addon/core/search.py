@@ -142,7 +142,7 @@ def _prunes(objective, graph, ev, refit):
 
 
 def _junctions(objective, graph, ev, refit, max_joints):
-    """The best of: a junction of four or more bones split in two (a crossing that is two
+    """The best of: a junction of four bones split in two (a crossing that is two
     junctions and a rung; not at the joint budget), or a bone between two junctions contracted
     (two junctions that are one), each evaluated with the joints held; kept if J falls after
     ``refit`` steps. Returns (graph, ev, kind) or None."""
@@ -159,7 +159,8 @@ def _junctions(objective, graph, ev, refit, max_joints):
             cands.append(("contract", b))
     best = None
     for kind, c in cands:
-        trial = (split_joint(graph, *c) if kind == "split" else contract_bones(graph, [c]))[0]
+        trial = (split_joint(graph, *c, CONFIG.search.split_fraction) if kind == "split"
+                 else contract_bones(graph, [c]))[0]
         ev_t = objective.evaluate(trial)
         if best is None or ev_t.value < best[1].value:
             best = (trial, ev_t, kind)

@@ -2,7 +2,7 @@
 
 A cross-section needs the faces a plane cuts near a point. Screening every vertex against every
 plane costs O(n k) for k planes; here the faces are sorted along a space-filling (Morton) curve
-and grouped into a complete binary tree of boxes (leaves of :data:`LEAF` faces), and each
+and grouped into a complete binary tree of boxes (leaves of ``CONFIG.numerics.tree_leaf`` faces), and each
 plane descends only into the boxes it cuts within its reach: O(k sqrt(m)) for a mesh of m faces.
 All planes descend together, one tree level per step, so the work is a few array operations
 per level, not a loop over planes or faces.
@@ -15,7 +15,7 @@ Examples
 ...               [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
 >>> tree = FaceTree(V, F)
 >>> p, f = tree.cut_by_planes([[0.5, 0.5, 0.5]], [[1.0, 0, 0]], [2.0])
->>> {4, 5, 6, 7, 8, 9, 10, 11} <= set(f.tolist())   # the 8 faces of the side walls, and more
+>>> {4, 5, 6, 7, 8, 9, 10, 11} <= set(tree.order[f].tolist())   # the side walls, and more
 True
 >>> len(tree.cut_by_planes([[0.5, 0.5, 5.0]], [[0, 0, 1.0]], [2.0])[1])    # above the cube
 0
@@ -25,13 +25,14 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FaceTree", "LEAF"]
+from ..config import CONFIG
 
-#: Faces per leaf box.
-LEAF = 4
+__all__ = ["FaceTree"]
+
+_NUM = CONFIG.numerics
 
 
-def _morton(P, bits=10):
+def _morton(P, bits):
     """Morton (Z-order) keys of points, ``bits`` per axis, over their bounding box."""
     lo, hi = P.min(axis=0), P.max(axis=0)
     q = ((P - lo) / np.maximum(hi - lo, 1e-300) * ((1 << bits) - 1)).astype(np.uint64)
@@ -56,14 +57,14 @@ class FaceTree:
         m = len(F)
         corners = V[F]                                        # (m, 3, 3)
         flo, fhi = corners.min(axis=1), corners.max(axis=1)
-        self.order = np.argsort(_morton((flo + fhi) / 2), kind="stable")
+        self.order = np.argsort(_morton((flo + fhi) / 2, _NUM.morton_bits), kind="stable")
         flo, fhi = flo[self.order], fhi[self.order]
-        n_leaves = max(1, -(-m // LEAF))
+        n_leaves = max(1, -(-m // _NUM.tree_leaf))
         self.depth = int(np.ceil(np.log2(n_leaves))) if n_leaves > 1 else 0
         size = 1 << self.depth                                # leaves, padded to a power of 2
-        start = np.minimum(np.arange(size) * LEAF, m)
+        start = np.minimum(np.arange(size) * _NUM.tree_leaf, m)
         self.leaf_start = start
-        self.leaf_stop = np.minimum(start + LEAF, m)
+        self.leaf_stop = np.minimum(start + _NUM.tree_leaf, m)
         # leaf boxes (padding leaves hold no face: a point box at the first face)
         real = start < m
         lo = np.repeat(flo[:1], size, axis=0) if m else np.zeros((size, 3))

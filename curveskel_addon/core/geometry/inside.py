@@ -9,13 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..config import CONFIG
+
 
 __all__ = ["InsideTest", "inside_mesh"]
 
-_CELL_FACES = 2.0
-_LEVEL = 1.5
-_SIDE_MEDIAN = 1.0
-_CHUNK = 1 << 18
+_NUM = CONFIG.numerics
 
 
 class _RayGrid:
@@ -23,8 +22,8 @@ class _RayGrid:
     rotation); built once, then queried for any number of points.
 
     Every triangle is stored in one level only: the finest of a stack of square grids (cells
-    ``_LEVEL`` times wider from one level to the next; the finest at least as wide as the median
-    triangle and about ``_CELL_FACES`` triangles per cell of the bounding box) where it spans at
+    ``_NUM.grid_level`` times wider from one level to the next; the finest at least as wide as the median
+    triangle and about ``_NUM.grid_cell_faces`` triangles per cell of the bounding box) where it spans at
     most two cells per axis, in the 1-4 cells it overlaps there. A point then reads its own
     cell on every level. At most 4 entries per triangle whatever its shape (the long slivers of
     a cap would otherwise fill hundreds of cells each) and a radix sort make the build O(faces)
@@ -49,9 +48,9 @@ class _RayGrid:
         self.glo = glo = np.array([y.min() for y in Y]) if len(Vr) else np.zeros(2)
         self.ghi = np.array([y.max() for y in Y]) if len(Vr) else np.zeros(2)
         ext = np.maximum(self.ghi - glo, 1e-300)
-        side = np.sqrt(ext[0] * ext[1] * _CELL_FACES / max(m, 1))
+        side = np.sqrt(ext[0] * ext[1] * _NUM.grid_cell_faces / max(m, 1))
         if m:
-            side = max(side, _SIDE_MEDIAN * float(np.median(np.maximum(hi[0] - lo[0],
+            side = max(side, _NUM.grid_side_median * float(np.median(np.maximum(hi[0] - lo[0],
                                                                        hi[1] - lo[1]))))
         self.levels = []
         tris, n_prev = [], 0
@@ -102,7 +101,7 @@ class _RayGrid:
             lo_r, hi_r = [x[far] for x in lo_r], [x[far] for x in hi_r]
             if not rest.size:
                 break
-            side *= _LEVEL
+            side *= _NUM.grid_level
         self.tri = np.concatenate(tris)
 
     def _sources(self, P2):
@@ -133,11 +132,11 @@ class _RayGrid:
         pids = np.flatnonzero(pin)
         S, N = self._sources(Pr[pids, 1:])
         n_per = N.sum(axis=1)
-        # expand (point, triangle) pairs in chunks of points of about _CHUNK pairs
+        # expand (point, triangle) pairs in chunks of points of about _NUM.block pairs
         cum = np.cumsum(n_per)
         s = 0
         while s < len(pids):
-            e = int(np.searchsorted(cum, (cum[s - 1] if s else 0) + _CHUNK, side="right"))
+            e = int(np.searchsorted(cum, (cum[s - 1] if s else 0) + _NUM.block, side="right"))
             e = min(max(e, s + 1), len(pids))
             nn = N[s:e].ravel()
             pp = np.repeat(np.repeat(pids[s:e], N.shape[1]), nn)
@@ -199,7 +198,8 @@ class InsideTest:
     array([ True])
     """
 
-    def __init__(self, V, F, *, seed=0, n_rays=3):
+    def __init__(self, V, F, *, seed=0, n_rays=None):
+        n_rays = CONFIG.input.inside_rays if n_rays is None else n_rays
         self._V = np.asarray(V, dtype=np.float64)
         self._F = np.asarray(F, dtype=np.int64)
         self.n_rays = n_rays
@@ -240,7 +240,7 @@ class InsideTest:
         return votes >= need
 
 
-def inside_mesh(P, V, F, *, seed=0, n_rays=3):
+def inside_mesh(P, V, F, *, seed=0, n_rays=None):
     """Whether each point is inside a closed triangle mesh (ray parity, majority of ``n_rays``).
 
     One-off form of :class:`InsideTest` (build and query once).

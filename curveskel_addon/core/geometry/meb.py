@@ -22,13 +22,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..config import CONFIG
 from ..errors import CurveSkelError
 
 __all__ = ["min_enclosing_ball", "ball_through", "size_of"]
 
-_INIT = 32        # size of the first working set
-_ADD = 32         # violators added per round
-_REL = 1e-12      # relative tolerance of the containment tests (squared distances)
+_NUM = CONFIG.numerics
 
 
 def ball_through(R: np.ndarray) -> tuple[np.ndarray, float]:
@@ -174,7 +173,7 @@ def min_enclosing_ball(P) -> tuple[np.ndarray, float]:
     scale2 = float(np.max(np.einsum("ij,ij->i", Q, Q)))
     if scale2 == 0.0:
         return o, 0.0
-    if k <= _INIT:
+    if k <= _NUM.meb_batch:
         work = list(range(k))
     else:
         # Extremes along the axes and diagonals + a farthest-point pair: a good first guess.
@@ -187,7 +186,7 @@ def min_enclosing_ball(P) -> tuple[np.ndarray, float]:
         work = list(dict.fromkeys(int(s) for s in seed))
     in_work = np.zeros(k, bool)
     in_work[work] = True
-    tol = _REL * scale2
+    tol = _NUM.meb_tolerance * scale2
     pts = [tuple(q) for q in Q[work].tolist()]
     while True:
         c, r2 = _welzl_mtf(pts, len(pts), [], tol)
@@ -199,8 +198,8 @@ def min_enclosing_ball(P) -> tuple[np.ndarray, float]:
         if nv == 0:
             break
         cand = np.flatnonzero(viol)
-        if nv > _ADD:
-            cand = cand[np.argpartition(-d2[cand], _ADD)[:_ADD]]
+        if nv > _NUM.meb_batch:
+            cand = cand[np.argpartition(-d2[cand], _NUM.meb_batch)[:_NUM.meb_batch]]
         in_work[cand] = True
         # New (violating) points first: move-to-front order makes them support candidates early.
         pts = [tuple(q) for q in Q[cand].tolist()] + pts

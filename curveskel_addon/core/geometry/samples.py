@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config import CONFIG
 from .rows import row_cross, row_norm
 
 __all__ = ["Samples", "face_samples", "subdivision_count", "canonical_subset"]
@@ -79,7 +80,7 @@ def _pattern(k: int) -> np.ndarray:
     return np.stack([1.0 - a - b, a, b], axis=1)
 
 
-def face_samples(V, F, h: float, *, max_k: int = 64) -> Samples:
+def face_samples(V, F, h: float, *, max_k: int | None = None) -> Samples:
     """Centroids of each face's ``k^2`` sub-triangles with their areas (see the module doc).
 
     Parameters
@@ -87,8 +88,9 @@ def face_samples(V, F, h: float, *, max_k: int = 64) -> Samples:
     V : (n, 3) float, F : (m, 3) int
     h : float > 0
         Sample length: no sub-triangle has a side longer than ``h`` (up to ``max_k``).
-    max_k : int
-        Most sub-divisions of one side (bounds the count on a degenerate sliver).
+    max_k : int, optional
+        Most sub-divisions of one side (bounds the count on a degenerate sliver); by default
+        as many as make one face hold the whole sample budget.
 
     Returns
     -------
@@ -99,6 +101,8 @@ def face_samples(V, F, h: float, *, max_k: int = 64) -> Samples:
     cross = row_cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
     dbl = row_norm(cross)
     normal = cross / np.maximum(dbl, 1e-300)[:, None]
+    if max_k is None:
+        max_k = int(np.ceil(np.sqrt(CONFIG.objective.max_samples)))
     k = np.minimum(subdivision_count(V, F, h), max_k)
     faces, bary, weight = [], [], []
     for kk in np.unique(k):                  # one pass per distinct count, not per face
@@ -122,7 +126,6 @@ def face_samples(V, F, h: float, *, max_k: int = 64) -> Samples:
 #: one of 3,000 medial samples (armadillo, horse), where ranks flipped 4-6 near-tied pairs.
 #: Adjacent vertices differ by ~1e-3 of the range even on a 1M-vertex mesh: ~10 cycles apart,
 #: so the draw still looks independent from one vertex to the next.
-DRAW_CYCLES = 9973.0
 
 
 def canonical_subset(key, k, seed=0, p=None):
@@ -133,7 +136,7 @@ def canonical_subset(key, k, seed=0, p=None):
 
     Efraimidis & Spirakis's weighted sampling without replacement: the ``k`` points with the
     largest ``u ** (1 / p)``. Each point's ``u`` is a continuous function of its own key,
-    ``frac(c z + phase)`` with ``z`` the key scaled to [0, 1] and ``c`` ~ :data:`DRAW_CYCLES`
+    ``frac(c z + phase)`` with ``z`` the key scaled to [0, 1] and ``c`` ~ :data:`CONFIG.objective.draw_cycles`
     (``seed`` changes ``c`` and the phase), so a point's pick depends on its own key and weight
     only and changes only where its score is within rounding of the k-th. Uniforms drawn from
     a generator in key order (the previous sampler) handed two near-tied keys each other's
@@ -159,7 +162,7 @@ def canonical_subset(key, k, seed=0, p=None):
     lo, hi = float(key.min()), float(key.max())
     z = (key - lo) / (hi - lo) if hi > lo else np.zeros(n)
     golden = 0.6180339887498949
-    c = DRAW_CYCLES * (1.0 + (seed * golden) % 1.0)
+    c = CONFIG.objective.draw_cycles * (1.0 + (seed * golden) % 1.0)
     u = np.modf(z * c + (seed * np.sqrt(2.0)) % 1.0)[0]
     score = np.log(np.maximum(u, 1e-300))     # log u / p: the same order as u ** (1 / p)
     if p is not None:

@@ -41,13 +41,10 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .mesh_graph import faces_around
-from .rows import row_cross, take_rows
+from .face_tree import FaceTree
+from .rows import row_cross
 
-__all__ = ["Sections", "cross_sections", "vertex_edges"]
-
-#: Vertex heights screened at once (vertices x planes), bounding the screen's memory.
-_SCREEN = 1 << 22
+__all__ = ["Sections", "cross_sections"]
 
 
 @dataclass(frozen=True)
@@ -81,8 +78,7 @@ class Sections:
     ds_dn: np.ndarray | None = None
 
 
-def cross_sections(V, F, X, N, reach, *, tree=None, face_of=None, vertex_edge=None,
-                   jacobian: bool = False) -> Sections:
+def cross_sections(V, F, X, N, reach, *, tree=None, jacobian: bool = False) -> Sections:
     """Cross-section of the mesh by the plane through each point ``X[k]`` normal to ``N[k]``.
 
     Parameters
@@ -96,12 +92,8 @@ def cross_sections(V, F, X, N, reach, *, tree=None, face_of=None, vertex_edge=No
     reach : (k,) float or float
         A loop with a point farther than this from ``X[k]`` is not the part's own: ignored.
     tree : FaceTree, optional
-        :class:`.face_tree.FaceTree` of the mesh: the faces near each plane are found in it
-        (else by screening every vertex against every plane).
-    face_of : (indptr, faces), optional
-        :func:`.mesh_graph.faces_around` of the mesh, if at hand.
-    vertex_edge : (n,) float, optional
-        :func:`vertex_edges` of the mesh, if at hand.
+        :class:`.face_tree.FaceTree` of the mesh (built here if not given): the faces near
+        each plane are found in it.
     jacobian : bool
         Also return the centroids' derivatives (see the module docstring).
 
@@ -113,7 +105,7 @@ def cross_sections(V, F, X, N, reach, *, tree=None, face_of=None, vertex_edge=No
     F = np.asarray(F, np.int64).reshape(-1, 3)
     X = np.asarray(X, np.float64).reshape(-1, 3)
     N = np.asarray(N, np.float64).reshape(-1, 3)
-    k, n = len(X), len(V)
+    k = len(X)
     reach = np.broadcast_to(np.asarray(reach, np.float64), (k,))
     centroid, area = X.copy(), np.zeros(k)
     spread, found = np.zeros(k), np.zeros(k, bool)
@@ -124,28 +116,18 @@ def cross_sections(V, F, X, N, reach, *, tree=None, face_of=None, vertex_edge=No
     empty = Sections(centroid, area, spread, found, dc_dx, dc_dn, ds_dx, ds_dn)
     if not k or not len(F):
         return empty
-    if tree is not None:
-        pi, fi = tree.cut_by_planes(X, N, reach)
-        Fs, corners, fnormal = tree.F, tree.corners, tree.normals
-    else:
-        if face_of is None:
-            face_of = faces_around(F, n)
-        if vertex_edge is None:
-            vertex_edge = vertex_edges(V, F, face_of)
-        pi, fi = _cut_faces(V, F, X, N, reach, face_of, vertex_edge)
-        Fs, corners, fnormal = F, None, None
+    if tree is None:
+        tree = FaceTree(V, F)
+    pi, fi = tree.cut_by_planes(X, N, reach)
     if not len(pi):
         return empty
-    cf = V[Fs[fi]] if corners is None else corners[fi]
-    h = np.einsum("fcd,fd->fc", cf - X[pi][:, None, :], N[pi])
+    h = np.einsum("fcd,fd->fc", tree.corners[fi] - X[pi][:, None, :], N[pi])
     neg = h < 0
     cut = neg.any(axis=1) & ~neg.all(axis=1)
     pi, fi, h, neg = pi[cut], fi[cut], h[cut], neg[cut]
     if not len(pi):
         return empty
-    fn = (row_cross(cf[cut, 1] - cf[cut, 0], cf[cut, 2] - cf[cut, 0]) if fnormal is None
-          else fnormal[fi])
-    seg = _segments(V, Fs[fi], N, pi, h, neg, fn)
+    seg = _segments(V, tree.F[fi], N, pi, h, neg, tree.normals[fi])
     loops = _loops(seg, X, N)
     if loops is None:
         return empty
@@ -192,41 +174,6 @@ class _Segments:
     qd: np.ndarray
     key: np.ndarray      # (f, 2) one key per (cut edge, point): joins segments into loops
     point: np.ndarray    # (f,) the point whose plane cut this face
-
-
-def _cut_faces(V, F, X, N, reach, face_of, vertex_edge):
-    """(point, face) pairs: faces each point's plane may cut within its reach (a superset).
-
-    A face the plane cuts has a corner within one of its sides' length of the plane, and a loop
-    within ``reach`` of the point has such a corner within ``reach`` plus that length. The
-    heights of all vertices above all planes are screened at once in float32 (a matrix
-    product, in blocks of planes bounding its memory) with a margin for the rounding; the
-    faces' corner heights are then computed exactly."""
-    V32 = V.astype(np.float32)
-    tol = vertex_edge + 1e-5 * float(np.abs(V).max(initial=0.0) + np.abs(X).max(initial=0.0))
-    tol32 = tol.astype(np.float32)[:, None]
-    has = np.flatnonzero(np.any(N != 0, axis=1))
-    block = max(1, _SCREEN // max(len(V), 1))
-    vs, ps = [], []
-    for s in range(0, len(has), block):       # a loop over blocks of planes, not vertices
-        js = has[s:s + block]
-        H = V32 @ N[js].T.astype(np.float32)
-        H -= (np.einsum("ij,ij->i", X[js], N[js])).astype(np.float32)[None, :]
-        v, c = np.nonzero(np.abs(H) <= tol32)
-        j = js[c]
-        d = V[v] - X[j]
-        near = np.einsum("ij,ij->i", d, d) <= (reach[j] + vertex_edge[v]) ** 2
-        vs.append(v[near])
-        ps.append(j[near])
-    if not vs:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    vi, pi = np.concatenate(vs), np.concatenate(ps)
-    indptr, faces = face_of
-    cnt = indptr[vi + 1] - indptr[vi]
-    first = np.repeat(indptr[vi] - np.cumsum(cnt) + cnt, cnt) + np.arange(cnt.sum())
-    m = len(F)
-    pf = np.unique(np.repeat(pi, cnt) * m + faces[first])
-    return pf // m, pf % m
 
 
 def _segments(V, Fc, N, pi, h, neg, fn) -> _Segments:
@@ -333,29 +280,3 @@ def _centroid_jacobian(seg, keep, sel, loop, u, v, s, nv, xp, A, M, I0, spread, 
         if name == "x":
             Jc = Jc + eye
         dc[0 if name == "x" else 1][pts] = Jc
-
-
-def vertex_edges(V, F, face_of=None):
-    """(n,) the longest side of the faces around each vertex (0 for a vertex in no face).
-
-    Examples
-    --------
-    >>> vertex_edges(np.array([[0., 0, 0], [3, 0, 0], [0, 4, 0], [9, 9, 9]]),
-    ...              np.array([[0, 1, 2]])).tolist()
-    [5.0, 5.0, 5.0, 0.0]
-    """
-    V = np.asarray(V, np.float64)
-    F = np.asarray(F, np.int64).reshape(-1, 3)
-    if face_of is None:
-        face_of = faces_around(F, len(V))
-    indptr, faces = face_of
-    side = np.zeros(len(F))
-    for a, b in ((0, 1), (1, 2), (2, 0)):
-        d = take_rows(V, F[:, a]) - take_rows(V, F[:, b])
-        np.maximum(side, np.einsum("ij,ij->i", d, d), out=side)
-    side = np.sqrt(side)
-    out = np.zeros(len(V))
-    has = indptr[1:] > indptr[:-1]
-    if len(faces):
-        out[has] = np.maximum.reduceat(side[faces], indptr[:-1][has])
-    return out

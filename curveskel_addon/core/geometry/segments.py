@@ -17,12 +17,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..config import CONFIG
 from ..errors import CurveSkelError
 from .rows import col_max, col_min, mul_rows, take_rows
 
 __all__ = ["closest_on_bones", "closest_bone"]
 
-_CHUNK = 1 << 18   # point-bone pairs evaluated at once when every bone is a candidate
+_NUM = CONFIG.numerics
 
 
 def _pair_closest(points, xi, xj):
@@ -157,7 +158,7 @@ def closest_bone(points, joints, bones) -> np.ndarray:
     AD, AA, inv, DD = (a.astype(f32)[:, None] for a in (AD, AA, inv, DD))
     ar = np.arange(nb, dtype=np.int32 if nb < 2**31 else np.int64)[:, None]
     rows, pairs, counts = [], [], []
-    step = max(1, _CHUNK // nb)
+    step = max(1, _NUM.block // nb)
     for s in range(0, n, step):
         p = PcT[:, s:s + step]
         d2 = _screen(Dm @ p, Am @ p, AD, AA, inv, DD)     # bones x points
@@ -236,7 +237,7 @@ def _all_bones(P, X, bones):
     Pc, At, Dt = Pc.astype(f32), np.ascontiguousarray(-2.0 * A.T, f32), np.ascontiguousarray(D.T, f32)
     AD, AA, inv, DD = AD.astype(f32), AA.astype(f32), inv.astype(f32), DD.astype(f32)
     rows, cands, counts = [], [], []
-    step = max(1, _CHUNK // nb)
+    step = max(1, _NUM.block // nb)
     for s in range(0, n, step):
         p = Pc[s:s + step]
         d2 = _screen(p @ Dt, p @ At, AD, AA, inv, DD)

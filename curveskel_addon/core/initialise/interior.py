@@ -15,7 +15,7 @@ without holes a distance through the volume is close to a straight-line one, who
 cut a limb that runs across them (spot's legs) in one piece with the body, so the limb would
 not get its own branch; the surface distance does that well.
 
-The inside is a grid of cubes (``RESOLUTION`` along the longest principal extent), aligned with
+The inside is a grid of cubes (``CONFIG.initial.interior_resolution`` along the longest principal extent), aligned with
 the principal axes of the vertices and symmetric about the middle of the box they span, so a
 rotated copy of the mesh gets the same cubes (the sign and order of the axes map the grid onto
 itself; issue 12). The cube centres inside the mesh (ray parity along one axis, all columns at
@@ -28,13 +28,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["InteriorGrid", "inside_cells", "RESOLUTION"]
+from ..config import CONFIG
 
-#: Cubes along the longest principal extent of the vertices (64: 3holes' plate, 0.35 of its
-#: 0.47 width thick, is 22 cubes thick; with f through the inside on every mesh, 48 and 80 gave
-#: more folds, and 80 lost one of 3holes' loops).
-RESOLUTION = 64
-
+__all__ = ["InteriorGrid", "inside_cells"]
 
 class InteriorGrid:
     """Cubes of a grid that lie inside a closed surface, aligned with its principal axes.
@@ -44,8 +40,8 @@ class InteriorGrid:
     V : (n, 3) float
     F : (m, 3) int
         A closed surface (the parity of ray crossings decides inside).
-    resolution : int
-        Cubes along the longest principal extent.
+    resolution : int, optional
+        Cubes along the longest principal extent (default ``CONFIG.initial.interior_resolution``).
 
     Examples
     --------
@@ -56,7 +52,7 @@ class InteriorGrid:
     >>> n_extra, E, w = grid.graph()                        # doctest: +SKIP
     """
 
-    def __init__(self, V, F, *, resolution: int = RESOLUTION):
+    def __init__(self, V, F, *, resolution: int | None = None):
         V = np.asarray(V, dtype=np.float64)
         self.n = len(V)
         # The grid follows the shape, not the world axes: aligned with the principal axes and
@@ -66,6 +62,7 @@ class InteriorGrid:
         _, self.axes = np.linalg.eigh(np.cov((V - self.mean).T) if self.n > 1 else np.eye(3))
         self.Y = (V - self.mean) @ self.axes
         lo, hi = self.Y.min(axis=0), self.Y.max(axis=0)
+        resolution = CONFIG.initial.interior_resolution if resolution is None else resolution
         self.h = float((hi - lo).max()) / resolution
         self.mid = (lo + hi) / 2
         if self.h > 0:
@@ -146,7 +143,7 @@ class InteriorGrid:
         return n_extra, np.concatenate(E), np.concatenate(W)
 
 
-def inside_cells(Y, F, origin, dims, h, side: float = 1.0):
+def inside_cells(Y, F, origin, dims, h, side: float):
     """Whether each point ``origin + (i, j, k) * h`` of a grid is inside a closed surface.
 
     Ray parity along the third axis for all columns at once (scanline voxelisation, O(faces +

@@ -17,7 +17,7 @@ changes, each measured:
   cap is almost equally far, and the graph metric's anisotropy picks one well off the tip; the
   contour lines around an off-tip pole are tilted, so the first joints lie off the axis with
   radii ~30 % too large. So p is chosen among the candidates whose graph distance from v2 is
-  within ``POLE_SLACK`` (10 %) of the maximum - still a geodesically extreme part of the shape -
+  within ``pole_slack`` (10 %) of the maximum - still a geodesically extreme part of the shape -
   as the one farthest along the protrusion's axis, estimated from the centroids of the two rings
   below them (graph distance in [1 - 2 slack, 1 - slack] and [1 - 3 slack, 1 - 2 slack] of the
   maximum; on a tube both centroids lie on its axis). That finds the tip also when the shape is
@@ -26,7 +26,7 @@ changes, each measured:
   candidate Euclidean-farthest from v2 is taken.
 * **Mirror-image ties.** On a mirror-symmetric shape (most characters) v1 and v2 come as a pair
   of mirror images with equal distances, and a plain argmax follows the last bits of the
-  coordinates. Two values within ``TIE`` of the maximum are told apart by the side of a plane of
+  coordinates. Two values within ``tie`` of the maximum are told apart by the side of a plane of
   the shape itself (:func:`_chiral_frame`), which no rotation, move or scale changes.
 * **A mirror-symmetric shape grows f from the pole and its mirror image** (``mirror=True``: the
   caller's closed genus-0 components). The pole is usually a limb's tip off the mirror plane (a
@@ -36,7 +36,7 @@ changes, each measured:
   (the neck drawn diagonally to the head), the elephant's front legs joined the body 25 units
   apart, spot's skeleton was 0.018 D from its own mirror image. When the shape is its own mirror
   image across exactly one principal plane through its centroid (:func:`bilateral_plane`: the
-  reflected points lie within ``MIRROR_TOL`` of the shape, in units of its rms radius; bilateral
+  reflected points lie within ``mirror_tolerance`` of the shape, in units of its rms radius; bilateral
   symmetry, as of animals and characters, not a bar's or a sphere's), f is the distance
   to the nearer of the pole and its twin (the vertex nearest the pole's reflection; one Dijkstra
   run from both): its level sets are the shape's own mirror images, so paired limbs branch off at
@@ -52,28 +52,16 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
+from scipy.spatial import cKDTree
 
+from ..config import CONFIG
 from ..errors import CurveSkelError
 from ..geometry.mesh_graph import adjacency, edge_csr
 
 __all__ = ["find_pole", "geodesic_from", "edge_graph", "graph_with", "bilateral_plane",
-           "principal_mirrors", "POLE_SLACK", "MIRROR_TOL"]
+           "principal_mirrors"]
 
-#: Candidates for the pole: graph distance from v2 at least (1 - POLE_SLACK) * max.
-POLE_SLACK = 0.1
-#: Values within this fraction of the maximum count as tied (mirror images; see _argmax_untied).
-TIE = 1e-6
-#: A shape is mirror-symmetric when its points reflected across a principal plane lie within this
-#: mean distance of it, in units of its rms radius (mirror-symmetric: spot 0.000, homer 0.019,
-#: scorpion 0.025, elephant 0.028, a T-posed human 0.031; not: a walking cat 0.046, armadillo
-#: 0.059, hand 0.15, horse 0.12).
-MIRROR_TOL = 0.038
-#: Points of the symmetry test, at most (evenly spaced by distance from the centroid).
-MIRROR_POINTS = 4000
-#: f of a mirror-symmetric shape is raised by this fraction of its maximum per rms radius on the
-#: positive side of the mirror plane (ties between mirror images broken the same way in any
-#: pose).
-TWIN_BIAS = 1e-6
+_CFG = CONFIG.initial
 
 
 def edge_graph(n: int, E: np.ndarray, lengths: np.ndarray):
@@ -199,9 +187,9 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int,
     d = geodesic_from(A, v2)[:n]
     d = np.where(np.isfinite(d), d, -1.0)
     top = d.max()
-    cand = np.flatnonzero(d >= (1.0 - POLE_SLACK) * top)
-    ring1 = (d >= (1.0 - 2 * POLE_SLACK) * top) & (d < (1.0 - POLE_SLACK) * top)
-    ring2 = (d >= (1.0 - 3 * POLE_SLACK) * top) & (d < (1.0 - 2 * POLE_SLACK) * top)
+    cand = np.flatnonzero(d >= (1.0 - _CFG.pole_slack) * top)
+    ring1 = (d >= (1.0 - 2 * _CFG.pole_slack) * top) & (d < (1.0 - _CFG.pole_slack) * top)
+    ring2 = (d >= (1.0 - 3 * _CFG.pole_slack) * top) & (d < (1.0 - 2 * _CFG.pole_slack) * top)
     axis = V[ring1].mean(axis=0) - V[ring2].mean(axis=0) if ring1.any() and ring2.any() else None
     if axis is not None and np.linalg.norm(axis) > 0:
         score = V[cand] @ axis
@@ -219,16 +207,16 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int,
             # another skeleton, 2.8e-3 D apart): a bias across the plane, far below any
             # geometric scale, orders them the same way in any pose (issue 12)
             # (raised on the positive side only: f stays >= 0, 0 at the source on the other)
-            return pole, f + TWIN_BIAS * float(f[np.isfinite(f)].max(initial=0.0)) * np.maximum(
+            return pole, f + _CFG.tie * float(f[np.isfinite(f)].max(initial=0.0)) * np.maximum(
                 side, 0.0)
     return pole, geodesic_from(A, pole)[:n]
 
 
-def bilateral_plane(V, n_points: int = MIRROR_POINTS, *, _mom=None):
+def bilateral_plane(V, n_points: int | None = None, *, _mom=None):
     """The shape's mirror plane if it has exactly one among its principal planes, else None.
 
     A principal plane through the centroid is a mirror when the reflected points lie within
-    ``MIRROR_TOL`` (mean distance to the nearest point, in rms radii) of the shape. Exactly one:
+    ``mirror_tolerance`` (mean distance to the nearest point, in rms radii) of the shape. Exactly one:
     bilateral symmetry (animals, characters); a bar, a capsule or a sphere has several. Depends
     only on the shape, not its pose or numbering (the method uses it). Not the plane the Blender
     layer names ``.L``/``.R`` bones by (:func:`.rig_layout.mirror_plane`, which prefers the
@@ -249,7 +237,7 @@ def bilateral_plane(V, n_points: int = MIRROR_POINTS, *, _mom=None):
     >>> bilateral_plane(np.array([[x, y, z] for x in (-1., 1) for y in (-2., 2) for z in (-3., 3)]))
     """
     c, planes = principal_mirrors(V, n_points, _mom=_mom)
-    mirrors = [e for score, e in planes if score <= MIRROR_TOL]
+    mirrors = [e for score, e in planes if score <= _CFG.mirror_tolerance]
     return (c, mirrors[0]) if len(mirrors) == 1 else None
 
 
@@ -265,13 +253,12 @@ def _moments(V):
     return c, r2, lam, axes
 
 
-def principal_mirrors(V, n_points: int = MIRROR_POINTS, *, _mom=None):
+def principal_mirrors(V, n_points: int | None = None, *, _mom=None):
     """(centre, [(score, normal)] for the three principal planes through the centroid): score is
     the mean distance from the reflected points to the nearest point, over the rms distance of
     the points from the centroid (0 for an exact mirror image; whatever the scale). At most
     ``n_points`` points, evenly spaced by distance from the centroid (the same whatever the
     numbering)."""
-    from scipy.spatial import cKDTree
 
     V = np.asarray(V, np.float64)
     if _mom is None:                      # (else :func:`_moments` of V, from the pole search)
@@ -283,6 +270,7 @@ def principal_mirrors(V, n_points: int = MIRROR_POINTS, *, _mom=None):
     if len(V) < 4 or rms <= 0:
         return c, [(np.inf, np.array([1.0, 0.0, 0.0]))]
     order = np.argsort(r2, kind="stable")
+    n_points = _CFG.mirror_points if n_points is None else n_points
     P = V[order[np.unique(np.linspace(0, len(V) - 1, min(n_points, len(V))).astype(np.int64))]]
     _, axes = np.linalg.eigh(np.cov((V - c).T)) if _mom is None else _mom[2:]
     tree = cKDTree(P)
@@ -298,7 +286,7 @@ def _mirror_twin(V, pole, frame, mom=None):
     """(twin, side): the vertex nearest the pole's reflection across the shape's mirror plane,
     and each vertex's signed distance from the plane in units of the rms radius, the sign taken
     from the shape's own chiral plane (:func:`_chiral_frame`: the same in any pose); None if the
-    shape is not mirror-symmetric across exactly one principal plane (``MIRROR_TOL``) or the pole
+    shape is not mirror-symmetric across exactly one principal plane (``mirror_tolerance``) or the pole
     is its own twin (a pole on the plane: f would barely change). Bilateral symmetry only: a bar,
     a capsule or a sphere is its own mirror image across several planes, one of them across its
     middle, and f from the two ends of a bar (or two corners of one end) bent its tip joint off
@@ -342,7 +330,7 @@ def _chiral_frame(V, mom=None):
 
 
 def _argmax_untied(values, P, frame) -> int:
-    """argmax of ``values`` (>= 0); two values within ``TIE`` of the maximum count as tied (a
+    """argmax of ``values`` (>= 0); two values within ``tie`` of the maximum count as tied (a
     mirror pair) and the one on the positive side of the shape's own plane
     (:func:`_chiral_frame`) wins.
 
@@ -352,7 +340,7 @@ def _argmax_untied(values, P, frame) -> int:
     instead of 30 (issue 12). The side of the plane separates the twins by their distance."""
     values = np.asarray(values, np.float64)
     top = values.max()
-    tied = np.flatnonzero(values >= top - TIE * abs(top))
+    tied = np.flatnonzero(values >= top - _CFG.tie * abs(top))
     centre, normal = frame
     if len(tied) != 2 or normal is None:
         # one best value, or a tie of more than two (a shape with more symmetry than a mirror,

@@ -36,7 +36,7 @@ where the level set splits. We implement this discrete version instead:
    rebuilt (at most 3 times; ``meta["refinements"]``).
 5. **Noise caps.** Local maxima of a graph-geodesic f (noise, and the uneven last band) make
    small cap regions bounded by one loop below them: spurious branch tips. A cap whose height
-   (max f in it minus its loop's level) is below ``CAP_FRACTION * s`` is merged into the region
+   (max f in it minus its loop's level) is below ``cap_fraction * s`` is merged into the region
    below it and its loop disappears. Caps are chosen on the original regions in one pass, so
    merging never cascades into a genuine short branch; the cap at the pole and a cap whose
    removal would leave no loop are kept. b1 does not change (one region and one loop go).
@@ -70,8 +70,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import breadth_first_order, connected_components
+from scipy.sparse.csgraph import connected_components
 
+from ..config import CONFIG
 from ..errors import CurveSkelError
 from ..geometry.segments import closest_on_bones
 from .interior import InteriorGrid
@@ -79,21 +80,10 @@ from ..geometry.meb import min_enclosing_ball, size_of
 from ..geometry.mesh_graph import edge_csr, edge_ids, edge_lengths, edge_table
 from .pole import find_pole
 from ..geometry.rows import next_corners
-from ..geometry.areas import vertex_areas
 
-#: f through the inside as well as over the surface on components with handles (:mod:`.interior`).
-INTERIOR_PATHS = True
+__all__ = ["FirstApproximation", "first_approximation"]
 
-__all__ = ["FirstApproximation", "first_approximation", "MIN_LEVELS", "MAX_LEVELS", "CAP_FRACTION"]
-
-MIN_LEVELS = 6          # at least this many levels over max f
-MAX_LEVELS = 400        # at most this many levels (first attempt)
-MAX_LEVELS_REFINED = 1600
-MAX_REFINEMENTS = 3
-CAP_FRACTION = 0.5      # caps lower than this fraction of s are noise ...
-CAP_AREA = 3.0          # ... unless, on a junction, their branch half a spacing lower is still
-                        # apart and covers this many s^2 of surface (a limb, not a bump)
-NUDGE = 1e-6            # zero-length bones: nudge by this fraction of the diagonal
+_CFG = CONFIG.initial
 
 
 @dataclass
@@ -301,18 +291,15 @@ def _cycles(n_reg, below, above) -> int:
     return int(ok.sum() - n_reg + nc)
 
 
-def _remove_noise_caps(rb: _Reeb, ct: _Contours, f, pole, s, E=None,
-                       area=None) -> tuple[_Reeb, np.ndarray, int]:
+def _remove_noise_caps(rb: _Reeb, ct: _Contours, f, pole, s) -> tuple[_Reeb, np.ndarray, int]:
     """Merge small top caps into the region below; returns (reeb, kept loop ids, count).
 
-    A cap lower than ``CAP_FRACTION`` of the spacing is noise. On a junction's region (``E``,
-    the mesh's edges, and ``area``, a vertex mask's surface area, given) it is kept when its
-    branch is a limb: still apart from the junction's other branches ``CAP_FRACTION`` of a
-    spacing lower (:func:`_apart_below`) and covering at least ``CAP_AREA`` s^2 of surface there
-    (a tube at least about a spacing thick). How far below a tip the last level falls is chance,
-    of the triangulation too: spot triangulated as its mirror image lost both front legs, their
-    caps 0.11 of a spacing high (0.62 as given), their branches 5.1 s^2; homer's fingers and
-    armadillo's claws, as short, cover 1.1-1.9 s^2 and stay noise."""
+    A cap lower than ``cap_fraction`` of the spacing lies below the level set's resolution:
+    where the last level falls under a tip is chance (of the triangulation too). Such a cap is
+    merged into the region below it, its loop dropped; the cap at the pole and a cap whose
+    removal would leave no loop are kept. Whether a real branch is worth its joints is J's
+    decision (the price of a branch), not this one's: this only removes what the levels cannot
+    resolve."""
     R, L = rb.n_regions, len(rb.below)
     deg = np.bincount(rb.below, minlength=R) + np.bincount(rb.above, minlength=R)
     top = np.full(R, -1, np.int64)                  # the loop below a region (for deg-1 regions)
@@ -324,13 +311,7 @@ def _remove_noise_caps(rb: _Reeb, ct: _Contours, f, pole, s, E=None,
     lp = top[cand]
     height = maxf[cand] - ct.levels[ct.loop_level[lp] - 1]
     under = rb.below[lp]
-    noise = (height < CAP_FRACTION * s) & (deg[under] >= 2)
-    if E is not None and area is not None:
-        for k in np.flatnonzero(noise & (deg[under] >= 3)):
-            t = ct.levels[ct.loop_level[lp[k]] - 1] - CAP_FRACTION * s
-            apart, branch = _apart_below(rb.reg_v, E, f, cand[k], under[k], t)
-            if apart and area(branch) >= CAP_AREA * s * s:
-                noise[k] = False
+    noise = (height < _CFG.cap_fraction * s) & (deg[under] >= 2)
     caps, lp, under = cand[noise], lp[noise], under[noise]
     if len(caps) == 0:
         return rb, np.arange(L), 0
@@ -346,25 +327,6 @@ def _remove_noise_caps(rb: _Reeb, ct: _Contours, f, pole, s, E=None,
     pstart, bmin, bmax, lab = rb.pieces
     return (_Reeb(nr, new[rb.reg_v], below, above, _cycles(nr, below, above),
                   (pstart, bmin, bmax, new[lab])), kept, len(caps))
-
-
-def _apart_below(reg_v, E, f, cap, under, t) -> tuple[bool, np.ndarray]:
-    """Whether the cap region's branch is still apart from the rest at f = t, and the branch:
-    the vertices of the cap, and of the region below it with f >= t, reached from the cap's top
-    through edges among them ((n,) bool); apart when they touch no vertex of another region
-    with f >= t (the junction's other branches above)."""
-    n = len(f)
-    W = (reg_v == cap) | ((reg_v == under) & (f >= t))
-    inside = W[E[:, 0]] & W[E[:, 1]]
-    Ei = E[inside]
-    G = sp.coo_matrix((np.ones(len(Ei), np.int8), (Ei[:, 0], Ei[:, 1])), shape=(n, n)).tocsr()
-    vs = np.flatnonzero(reg_v == cap)
-    top = int(vs[np.argmax(f[vs])])
-    reached = np.zeros(n, bool)
-    reached[breadth_first_order(G, top, directed=False, return_predecessors=False)] = True
-    other = (reg_v != cap) & (reg_v != under) & (f >= t)
-    touch = (reached[E[:, 0]] & other[E[:, 1]]) | (reached[E[:, 1]] & other[E[:, 0]])
-    return not bool(touch.any()), reached
 
 
 # ------------------------------------------------------------------------------------------------
@@ -435,7 +397,7 @@ def _embed(V, diag, ct: _Contours, rb: _Reeb, kept):
 
 def _nudge_zero_bones(joints, bones, bone_reg, V, vorder, vstarts, diag, n_loop_joints):
     """Give every zero-length bone a length: move its region joint (or 2nd joint) a little."""
-    eps = NUDGE * max(diag, 1e-300)
+    eps = _CFG.nudge * max(diag, 1e-300)
     for _ in range(3):
         ln = np.linalg.norm(joints[bones[:, 0], :3] - joints[bones[:, 1], :3], axis=1)
         bad = np.flatnonzero(ln < 0.5 * eps)
@@ -463,8 +425,8 @@ def _single_bone(V, diag):
         axis = np.array([1.0, 0.0, 0.0])
     proj = Q @ axis
     lo, hi = float(proj.min()), float(proj.max())
-    if hi - lo < NUDGE * max(diag, 1e-300):
-        h = max(NUDGE * max(diag, 1e-300), 1e-12)
+    if hi - lo < _CFG.nudge * max(diag, 1e-300):
+        h = max(_CFG.nudge * max(diag, 1e-300), 1e-12)
         lo, hi = -h, h
     radial = np.linalg.norm(Q - proj[:, None] * axis, axis=1)
     r = float(radial.mean())
@@ -533,7 +495,7 @@ def first_approximation(V, F, *, spacing: float, seed: int, inside=None,
     E, ecount = edge_table(F, n) if edges is None else edges
     expected = _expected_cycles(n, E, ecount, m)
     fa = _approximate(V, F, E, expected, spacing, seed, None, timings, t0)
-    if INTERIOR_PATHS and expected and fa.region is not None:
+    if expected and fa.region is not None:
         # With handles, a cycle may close across its hole instead of round it: its contour
         # lines' centres then lie in the hole, outside the shape. If any joint does, f is
         # computed again through the inside as well (:mod:`.interior`), and the result with
@@ -576,9 +538,10 @@ def _approximate(V, F, E, expected, spacing, seed, extra, timings, t0) -> FirstA
         joints, bones = _single_bone(V, diag)
         return _finish(V, joints, bones, None, meta | {"spacing_used": 1.0, "levels": 0,
                                                        "regions": 1, "loops": 0}, timings)
-    s = min(spacing * diag, maxf / (MIN_LEVELS + 1))
-    cap = MAX_LEVELS
-    for attempt in range(MAX_REFINEMENTS + 1):
+    s = min(spacing * diag, maxf / (_CFG.min_levels + 1))
+    cap = _CFG.max_levels
+    refined = 4 * _CFG.max_levels           # levels at most once refined
+    for attempt in range(_CFG.max_refinements + 1):
         s = max(s, maxf / (cap + 1))
         K = max(int(np.ceil(maxf / s)) - 1, 1)     # levels c_1..c_K < max f
         t0 = time.perf_counter()
@@ -587,20 +550,14 @@ def _approximate(V, F, E, expected, spacing, seed, extra, timings, t0) -> FirstA
         t0 = time.perf_counter()
         rb = _regions(n, E, F, ct)
         timings["reeb"] = timings.get("reeb", 0.0) + time.perf_counter() - t0
-        if expected is None or rb.cycles >= expected or attempt == MAX_REFINEMENTS:
+        if expected is None or rb.cycles >= expected or attempt == _CFG.max_refinements:
             break
-        if s <= maxf / (MAX_LEVELS_REFINED + 1) * 1.0000001:
+        if s <= maxf / (refined + 1) * 1.0000001:
             break
-        s, cap = s / 2, MAX_LEVELS_REFINED
+        s, cap = s / 2, refined
         meta["refinements"] = attempt + 1
     t0 = time.perf_counter()
-    areas = []                  # the vertex areas, computed only if a junction's cap asks
-
-    def area(mask):
-        if not areas:
-            areas.append(vertex_areas(V, F))
-        return float(areas[0][mask].sum())
-    rb, kept, removed = _remove_noise_caps(rb, ct, f, pole, s, E, area)
+    rb, kept, removed = _remove_noise_caps(rb, ct, f, pole, s)
     timings["reeb"] += time.perf_counter() - t0
     meta.update(spacing_used=s / diag if diag > 0 else 1.0, levels=int(K), cycles=int(rb.cycles),
                 expected_cycles=expected, noise_caps_removed=int(removed),

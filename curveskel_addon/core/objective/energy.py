@@ -132,7 +132,7 @@ def residuals(pr: FitProblem) -> np.ndarray:
     Examples
     --------
     >>> import numpy as np
-    >>> from curveskel_addon.core.problem import FitProblem
+    >>> from curveskel_addon.core.objective.problem import FitProblem
     >>> pr = FitProblem(np.array([[1.0, 0, 0.5]]), np.ones(1), np.array([[0, 0, 0, 1.0], [0, 0, 1, 1.0]]),
     ...                 np.array([[0, 1]]), np.array([0]), np.array([0.5]))
     >>> residuals(pr)
@@ -157,7 +157,7 @@ def energy(pr: FitProblem, joints: np.ndarray | None = None) -> float:
     Examples
     --------
     >>> import numpy as np
-    >>> from curveskel_addon.core.problem import FitProblem
+    >>> from curveskel_addon.core.objective.problem import FitProblem
     >>> pr = FitProblem(np.array([[2.0, 0, 0.5]]), np.ones(1), np.array([[0, 0, 0, 1.0], [0, 0, 1, 1.0]]),
     ...                 np.array([[0, 1]]), np.array([0]), np.array([0.5]))
     >>> energy(pr)        # (2^2 - 1^2)^2
@@ -205,7 +205,7 @@ def energy_and_gradient(pr: FitProblem, joints: np.ndarray | None = None) -> tup
     Examples
     --------
     >>> import numpy as np
-    >>> from curveskel_addon.core.problem import FitProblem
+    >>> from curveskel_addon.core.objective.problem import FitProblem
     >>> pr = FitProblem(np.array([[2.0, 0, 0.5]]), np.ones(1), np.array([[0, 0, 0, 1.0], [0, 0, 1, 1.0]]),
     ...                 np.array([[0, 1]]), np.array([0]), np.array([0.5]))
     >>> E, g = energy_and_gradient(pr)
@@ -289,7 +289,7 @@ def line_quartic(pr: FitProblem, D: np.ndarray, joints: np.ndarray | None = None
     Examples
     --------
     >>> import numpy as np
-    >>> from curveskel_addon.core.problem import FitProblem
+    >>> from curveskel_addon.core.objective.problem import FitProblem
     >>> pr = FitProblem(np.array([[2.0, 0, 0.5]]), np.ones(1), np.array([[0, 0, 0, 1.0], [0, 0, 1, 1.0]]),
     ...                 np.array([[0, 1]]), np.array([0]), np.array([0.5]))
     >>> D = np.zeros((2, 4)); D[:, 3] = 1.0        # shrink both radii: e(lam) = 4 - (1 - lam)^2

@@ -20,7 +20,7 @@ from scipy.sparse.linalg import splu
 __all__ = ["minimise"]
 
 
-def minimise(objective, graph, *, max_iterations=100, tolerance=1e-7, fixed=None,
+def minimise(objective, graph, *, max_iterations, tolerance, fixed=None,
              evaluation=None):
     """Minimise J over the joints of ``graph`` (positions and radii).
 
