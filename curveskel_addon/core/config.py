@@ -90,15 +90,13 @@ class ObjectiveConfig:
     #: the surface quadrature's sub-triangles are at most this share of a spacing across
     sample_length: float = 0.5
     #: surface samples at most (a uniform subset above: the same integral, less work)
-    max_samples: int = 30_000
+    max_samples: int = 10_000
     #: a part's thickness is at least this share of a spacing (the fit's unit there)
     thickness_floor: float = 0.25
-    #: a cross-section whose rms spread exceeds the first times the part's thickness fades
-    #: out of the centring, gone at the second (not the part's own: a limb's root cuts the
-    #: body; a disc's spread is 0.71 of its radius)
-    own_section: tuple = (1.3, 2.0)
-    #: cross-section loops are looked for within this many thicknesses
-    section_reach: float = 4.0
+    #: the cross-section a bone is centred in is the solid's within this many thicknesses of
+    #: its point: all of a round part's (its outline is about one thickness away), little of
+    #: the body a limb's root cuts across
+    section_reach: float = 2.0
     #: points along every bone (ends included) where containment is measured
     bone_points: int = 9
     #: the uniform subset of samples hashes each sample's geodesic distance this many times

@@ -1,10 +1,14 @@
-"""The skeleton as the search holds it: joints, bones, and which bones each Reeb region may map to.
+"""The skeleton as the search holds it: joints, bones, the Reeb regions each bone explains, and
+the thickness of the part each bone lies in.
 
 A :class:`SkeletonGraph` is an immutable value: the continuous minimisation returns a new one
 with moved joints, a topology move returns a new one with its bone map. ``pairs`` lists
-``(region, bone)``: the surface of a Reeb region of the first approximation maps only onto
-those bones (sigma stays tied to the regions, the paper's protection against a silhouette that
-folds onto itself); a move rewrites the bone side through its bone map.
+``(region, bone)``: the surface of a Reeb region of the first approximation maps onto those
+bones (the output mapping of the input vertices, the paper's sigma); ``thick`` is each bone's
+part's thickness, the centring's unit of length there. Both are attributes of the bones, set by
+the first approximation and carried through every move by its bone map (a bone made of others
+takes their mean thickness): J then depends on the graph alone, never on which samples happen
+to be nearest a bone (a sample equidistant from two bones would otherwise make J jump).
 """
 
 from __future__ import annotations
@@ -14,7 +18,7 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["SkeletonGraph", "rewrite_pairs", "candidates_from_pairs"]
+__all__ = ["SkeletonGraph", "rewrite_pairs", "carry_thickness", "candidates_from_pairs"]
 
 
 def _frozen(a, dtype, cols):
@@ -25,19 +29,27 @@ def _frozen(a, dtype, cols):
 
 @dataclass(frozen=True, eq=False)
 class SkeletonGraph:
-    """Joints (J, 4) x, y, z, r; bones (B, 2); pairs (P, 2) (region, bone)."""
+    """Joints (J, 4) x, y, z, r; bones (B, 2); pairs (P, 2) (region, bone); thick (B,) or None."""
 
     joints: np.ndarray
     bones: np.ndarray
     pairs: np.ndarray
+    thick: np.ndarray | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "joints", _frozen(self.joints, np.float64, 4))
         object.__setattr__(self, "bones", _frozen(self.bones, np.int64, 2))
         object.__setattr__(self, "pairs", _frozen(self.pairs, np.int64, 2))
+        if self.thick is not None:
+            t = np.array(self.thick, np.float64).ravel()
+            t.flags.writeable = False
+            object.__setattr__(self, "thick", t)
+
+    def with_thickness(self, thick) -> "SkeletonGraph":
+        return SkeletonGraph(self.joints, self.bones, self.pairs, thick)
 
     def with_joints(self, joints) -> "SkeletonGraph":
-        g = SkeletonGraph(joints, self.bones, self.pairs)
+        g = SkeletonGraph(joints, self.bones, self.pairs, self.thick)
         for name in ("degree",):          # topology caches carry over
             if name in self.__dict__:
                 g.__dict__[name] = self.__dict__[name]
@@ -54,6 +66,18 @@ class SkeletonGraph:
     @property
     def n_leaves(self) -> int:
         return int(np.count_nonzero(self.degree == 1))
+
+
+def carry_thickness(thick, old_lengths, bone_map, n_new):
+    """Each new bone's thickness after a move: the length-weighted mean of the old bones that map
+    to it (``bone_map`` rows ``(old, new)``); the median of all where none does."""
+    if thick is None:
+        return None
+    bm = np.asarray(bone_map, np.int64).reshape(-1, 2)
+    w = np.maximum(np.asarray(old_lengths, np.float64)[bm[:, 0]], 1e-300)
+    W = np.bincount(bm[:, 1], w, n_new)
+    T = np.bincount(bm[:, 1], w * thick[bm[:, 0]], n_new)
+    return np.where(W > 0, T / np.maximum(W, 1e-300), float(np.median(thick)) if len(thick) else 1.0)
 
 
 def rewrite_pairs(pairs, bone_map) -> np.ndarray:

@@ -16,6 +16,7 @@ from .geometry.face_tree import FaceTree
 from .geometry.inside import InsideTest
 from .geometry.mesh_graph import edge_table, faces_around
 from .geometry.rows import col_max, col_min, row_cross, row_norm
+from .geometry.disc_sections import DiscSections, disc_sections
 from .geometry.sections import Sections, cross_sections
 from .geometry.meb import size_of
 
@@ -109,7 +110,10 @@ class Mesh:
                          None if new.dc_dx is None else new.dc_dx[j],
                          None if new.dc_dn is None else new.dc_dn[j],
                          None if new.ds_dx is None else new.ds_dx[j],
-                         None if new.ds_dn is None else new.ds_dn[j])
+                         None if new.ds_dn is None else new.ds_dn[j],
+                         new.extent[j],
+                         None if new.de_dx is None else new.de_dx[j],
+                         None if new.de_dn is None else new.de_dn[j])
                 cache[keys[i]] = entry
                 hit[i] = entry
         if not len(X):
@@ -122,4 +126,41 @@ class Mesh:
                         stack(cols[4], (3, 3)) if jacobian else None,
                         stack(cols[5], (3, 3)) if jacobian else None,
                         stack(cols[6], (3,)) if jacobian else None,
-                        stack(cols[7], (3,)) if jacobian else None)
+                        stack(cols[7], (3,)) if jacobian else None,
+                        np.array(cols[8], np.float64),
+                        stack(cols[9], (3,)) if jacobian else None,
+                        stack(cols[10], (3,)) if jacobian else None)
+
+    @cached_property
+    def _disc_cache(self) -> dict:
+        return {}
+
+    def discs(self, X, N, R, *, jacobian=False) -> DiscSections:
+        """:func:`.geometry.disc_sections.disc_sections` of this mesh, each disc's result kept
+        (a search asks again and again for the sections of bones that did not move)."""
+        X = np.ascontiguousarray(X, np.float64).reshape(-1, 3)
+        N = np.ascontiguousarray(N, np.float64).reshape(-1, 3)
+        R = np.broadcast_to(np.asarray(R, np.float64), (len(X),))
+        k = len(X)
+        cache = self._disc_cache
+        keys = [r.tobytes() for r in np.concatenate([X, N, R[:, None]], 1)]
+        hit = [cache.get(key) for key in keys]
+        need = np.asarray([i for i, h in enumerate(hit) if h is None or (jacobian and h[2] is None)],
+                          np.int64)
+        if len(need):
+            new = disc_sections(self.V, self.F, X[need], N[need], R[need], tree=self.face_tree,
+                                inside=self.inside, jacobian=jacobian)
+            if len(cache) > 200_000:
+                cache.clear()
+            for j, i in enumerate(need):
+                entry = (new.centroid[j], new.area[j],
+                         None if new.dc_dx is None else new.dc_dx[j],
+                         None if new.dc_dn is None else new.dc_dn[j])
+                cache[keys[i]] = entry
+                hit[i] = entry
+        centroid = np.array([h[0] for h in hit]).reshape(k, 3)
+        area = np.array([h[1] for h in hit], np.float64)
+        if not jacobian:
+            return DiscSections(centroid, area)
+        return DiscSections(centroid, area, np.array([h[2] for h in hit]).reshape(k, 3, 3),
+                            np.array([h[3] for h in hit]).reshape(k, 3, 3))

@@ -109,7 +109,9 @@ class SkeletonRun:
                                                            self.init.graph, weights_for(p),
                                                            p.spacing)
         t0 = time.perf_counter()
-        self.graph = budget(self.objective, self.init.graph, p.max_joints)
+        g0 = self.init.graph
+        g0 = g0.with_thickness(self.objective.measure_thickness(g0))
+        self.graph = budget(self.objective, g0, p.max_joints)
         self.timings["budget"] = time.perf_counter() - t0
         self._steps = search_steps(self.objective, self.graph, self.log,
                                    max_joints=p.max_joints, max_iterations=p.max_iterations)

@@ -216,8 +216,8 @@ def search_steps(objective, graph, log: SearchLog, *, max_joints=0, max_iteratio
     log.objective = objective
     ev = objective.evaluate(graph)
     yield graph, log.add("initialise", graph, ev)
-    g2, ev2, it = minimise(objective, graph, evaluation=ev, max_iterations=steps,
-                           tolerance=cfg.round_tolerance)
+    g2, ev2, it = minimise(objective, graph, evaluation=ev, max_iterations=max(steps, 100),
+                           tolerance=cfg.final_tolerance)
     if ev2.value < ev.value:
         graph, ev = g2, ev2
         yield graph, log.add("fit", graph, ev, iterations=int(it))
@@ -234,7 +234,7 @@ def search_steps(objective, graph, log: SearchLog, *, max_joints=0, max_iteratio
         if ev2.value < ev.value:
             graph, ev = g2, ev2
             yield graph, log.add("fit", graph, ev, iterations=int(it))
-        for name, move in (("merge", lambda: _merges(objective, graph, ev, cfg.refit_steps)),
+        for name, move in (("merge", lambda: _merges(objective, graph, ev, 0)),
                            ("prune", lambda: _prunes(objective, graph, ev, cfg.refit_steps))):
             kept = move()
             if kept is not None:

@@ -66,6 +66,10 @@ class Sections:
         taken as a free 3-vector: the caller chains its own normalisation); zero where none.
     ds_dx, ds_dn : (k, 3) float or None
         Gradients of the spread likewise.
+    extent : (k,) float
+        The farthest the loop reaches from the point (0 where none was found).
+    de_dx, de_dn : (k, 3) float or None
+        Gradients of the extent likewise (of its farthest crossing point's distance).
     """
 
     centroid: np.ndarray
@@ -76,6 +80,9 @@ class Sections:
     dc_dn: np.ndarray | None = None
     ds_dx: np.ndarray | None = None
     ds_dn: np.ndarray | None = None
+    extent: np.ndarray | None = None
+    de_dx: np.ndarray | None = None
+    de_dn: np.ndarray | None = None
 
 
 def cross_sections(V, F, X, N, reach, *, tree=None, jacobian: bool = False) -> Sections:
@@ -113,7 +120,11 @@ def cross_sections(V, F, X, N, reach, *, tree=None, jacobian: bool = False) -> S
     dc_dn = np.zeros((k, 3, 3)) if jacobian else None
     ds_dx = np.zeros((k, 3)) if jacobian else None
     ds_dn = np.zeros((k, 3)) if jacobian else None
-    empty = Sections(centroid, area, spread, found, dc_dx, dc_dn, ds_dx, ds_dn)
+    extent = np.zeros(k)
+    de_dx = np.zeros((k, 3)) if jacobian else None
+    de_dn = np.zeros((k, 3)) if jacobian else None
+    empty = Sections(centroid, area, spread, found, dc_dx, dc_dn, ds_dx, ds_dn, extent, de_dx,
+                     de_dn)
     if not k or not len(F):
         return empty
     if tree is None:
@@ -155,13 +166,33 @@ def cross_sections(V, F, X, N, reach, *, tree=None, jacobian: bool = False) -> S
     area[pts] = A
     spread[pts] = np.sqrt(np.maximum(I0 / A - np.einsum("ij,ij->i", m, m), 0.0))
     found[pts] = True
+    # the extent: every crossing point is the first end (p) of one segment of its loop
+    sel = np.isin(sl, chosen_ok)
+    remap = np.full(L, -1, np.int64)
+    remap[chosen_ok] = np.arange(len(chosen_ok))
+    loop_ok = remap[sl[sel]]
+    du2 = np.einsum("ij,ij->i", u[sel], u[sel])
+    far = np.zeros(len(chosen_ok))
+    np.maximum.at(far, loop_ok, du2)
+    extent[pts] = np.sqrt(far)
     if jacobian and len(pts):
-        sel = np.isin(sl, chosen_ok)
-        remap = np.full(L, -1, np.int64)
-        remap[chosen_ok] = np.arange(len(chosen_ok))
-        _centroid_jacobian(seg, keep, sel, remap[sl[sel]], u[sel], v[sel], s[sel], nv[sel],
+        _centroid_jacobian(seg, keep, sel, loop_ok, u[sel], v[sel], s[sel], nv[sel],
                            xp[sel], A, M, I0, spread[pts], pts, (dc_dx, dc_dn), (ds_dx, ds_dn))
-    return Sections(centroid, area, spread, found, dc_dx, dc_dn, ds_dx, ds_dn)
+        # the farthest crossing point of each loop: d|u| = u^T du / |u|, u = p - x
+        at = np.flatnonzero(du2 == far[loop_ok])
+        at = at[np.unique(loop_ok[at], return_index=True)[1]]
+        idx = np.flatnonzero(keep)[sel][at]
+        um = u[sel][at]
+        nvm = nv[sel][at]
+        d = seg.pd[idx]
+        den = np.einsum("ij,ij->i", nvm, d)
+        unit = um / np.maximum(np.sqrt(du2[at]), 1e-300)[:, None]
+        # dp/dx = d n^T / (n.d): u^T dp/dx = (u.d) n^T / (n.d); du/dx = dp/dx - I
+        ud = np.einsum("ij,ij->i", unit, d) / den
+        de_dx[pts[loop_ok[at]]] = ud[:, None] * nvm - unit
+        de_dn[pts[loop_ok[at]]] = ud[:, None] * (xp[sel][at] - seg.p[idx])
+    return Sections(centroid, area, spread, found, dc_dx, dc_dn, ds_dx, ds_dn, extent, de_dx,
+                    de_dn)
 
 
 @dataclass
@@ -216,8 +247,10 @@ def _segments(V, Fc, N, pi, h, neg, fn) -> _Segments:
 
 def _loops(seg: _Segments, X, N):
     """Segments joined into loops; per point its innermost closed loop winding round it (the
-    smallest positive area). Returns (loop of each segment, point of each loop, chosen loops)
-    or None when no point has one."""
+    smallest positive area), or, for a point no loop winds round (it lies outside the part),
+    the closed loop whose centroid is nearest: a point crossing the surface keeps its loop, so
+    the centroid, and J, do not jump there. Returns (loop of each segment, point of each loop,
+    chosen loops) or None when no point has one."""
     f = len(seg.p)
     uk, inv = np.unique(seg.key.ravel(), return_inverse=True)
     inv = inv.reshape(-1, 2)
@@ -235,10 +268,18 @@ def _loops(seg: _Segments, X, N):
     cr = np.einsum("ij,ij->i", row_cross(u, v), N[seg.point])
     area = np.bincount(seg_loop, cr, nc) / 2.0
     wind = np.bincount(seg_loop, np.arctan2(cr, np.einsum("ij,ij->i", u, v)), nc) / (2 * np.pi)
-    cand = np.flatnonzero(closed & (wind > 0.5) & (area > 0))
-    if not len(cand):
+    good = closed & (area > 0)
+    if not good.any():
         return None
-    cand = cand[np.lexsort((area[cand], owner[cand]))]
+    # rank: winding loops first (innermost: smallest area), then the others by the distance of
+    # their centroid (M / A about the point, the polygon formula)
+    s_ = cr
+    M = np.stack([np.bincount(seg_loop, (u[:, c] + v[:, c]) * s_, nc) for c in range(3)], 1) / 6.0
+    dist = np.linalg.norm(M, axis=1) / np.maximum(np.abs(area), 1e-300)
+    winds = wind > 0.5
+    cand = np.flatnonzero(good)
+    key2 = np.where(winds[cand], area[cand], np.inf)
+    cand = cand[np.lexsort((dist[cand], key2, ~winds[cand], owner[cand]))]
     cand = cand[np.r_[True, owner[cand][1:] != owner[cand][:-1]]]
     return seg_loop, owner, cand
 

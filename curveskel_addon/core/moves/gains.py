@@ -113,7 +113,7 @@ def merge_gains(objective, graph, evaluation):
     d_centre = np.zeros(len(k))
     if w.centre:
         # the new bone (a, b) replaces b1 and b2; its thickness the mean of theirs
-        thick = objective.thickness(graph, evaluation.bone)
+        thick = objective.thickness(graph)
         old = bone_centres(X[bones[:, 0]], X[bones[:, 1]], bones, objective.mesh, D, thick,
                            J, jacobian=None)
         new = bone_centres(X[a], X[b], np.stack([a, b], 1), objective.mesh, D,
@@ -138,7 +138,7 @@ def prune_gains(objective, graph, evaluation, chains):
     bones = graph.bones
     B = len(bones)
     out = np.full(len(chains), np.inf)
-    thick = objective.thickness(graph, evaluation.bone)
+    thick = objective.thickness(graph)
     cen = (bone_centres(X[bones[:, 0]], X[bones[:, 1]], bones, objective.mesh, D, thick,
                         len(Z), jacobian=None) if w.centre else np.zeros(B))
     k_all, a_all, b_all = chain_neighbours(bones, len(Z))

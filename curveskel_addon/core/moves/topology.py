@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry.rows import row_norm
-from ..graph import SkeletonGraph, rewrite_pairs
+from ..graph import SkeletonGraph, carry_thickness, rewrite_pairs
 
 __all__ = ["merge_joints", "contract_bones", "prune_chains", "split_bones", "leaf_chains",
            "incident"]
@@ -37,11 +37,14 @@ def incident(bones, n_joints):
 
 
 def _rebuild(graph, joints, bones, keep_joint, bone_map) -> tuple:
-    """Drop the joints not kept, renumber, rewrite the pairs."""
+    """Drop the joints not kept, renumber, rewrite the pairs, carry the thickness."""
     new_id = np.cumsum(keep_joint) - 1
     B = new_id[bones]
     pairs = rewrite_pairs(graph.pairs, bone_map)
-    return SkeletonGraph(joints[keep_joint], B, pairs), bone_map
+    Z = np.asarray(graph.joints)
+    old_len = row_norm(Z[graph.bones[:, 0], :3] - Z[graph.bones[:, 1], :3])
+    thick = carry_thickness(graph.thick, old_len, bone_map, len(B))
+    return SkeletonGraph(joints[keep_joint], B, pairs, thick), bone_map
 
 
 def merge_joints(graph, ks):

@@ -103,9 +103,18 @@ class Objective:
         bone, t, _ = closest_on_bones(self.samples.points, graph.joints, graph.bones, cand)
         return bone, t
 
-    def thickness(self, graph, bone) -> np.ndarray:
-        """(B,) the thickness of each bone's part: the area-weighted mean thickness of the
-        samples mapped to it (``bone``: each sample's bone); the median where none is."""
+    def thickness(self, graph) -> np.ndarray:
+        """(B,) the thickness of each bone's part: the graph's own (carried from the first
+        approximation through every move), else that of the samples nearest each bone now."""
+        if graph.thick is not None:
+            return np.asarray(graph.thick)
+        return self.measure_thickness(graph)
+
+    def measure_thickness(self, graph, bone=None) -> np.ndarray:
+        """(B,) the area-weighted mean thickness of the samples nearest each bone (``bone``:
+        their bones, if known); the median where none is."""
+        if bone is None:
+            bone = self.sigma(graph)[0]
         B = len(graph.bones)
         w = self.samples.weights
         W = np.bincount(bone, w, B)
@@ -129,7 +138,7 @@ class Objective:
     def evaluate(self, graph, sigma=None) -> Evaluation:
         """J of ``graph`` (sigma: its own nearest points unless given)."""
         bone, t = self.sigma(graph) if sigma is None else sigma
-        self._thick = self.thickness(graph, bone)
+        self._thick = self.thickness(graph)
         Z = np.asarray(graph.joints)
         blocks = self._blocks(Z, graph.bones, bone, t, False)
         terms = {k: float(np.dot(r, r)) for k, (_, (r, _)) in blocks.items()}
@@ -152,7 +161,7 @@ class Objective:
         ``g`` the exact gradient of the continuous part of J and ``H`` its Gauss-Newton
         matrix."""
         Z = np.asarray(graph.joints)
-        self._thick = self.thickness(graph, sigma[0])
+        self._thick = self.thickness(graph)
         n = 4 * len(Z)
         H = sp.csr_matrix((n, n))
         g = np.zeros(n)

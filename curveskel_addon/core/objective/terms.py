@@ -19,11 +19,11 @@ fit
     hindquarters: the silhouette 0.02 D out), and in units of D a finger's errors count 10^4
     times less than a torso's ten times thicker.
 centre
-    How far the middle of each bone lies from the area centroid of the mesh's cross-section
-    through it, across the bone (:mod:`..geometry.sections`), relative to its part's
-    thickness: ``sum_b (l_b / D) f_b^2 |q_b - c_b|^2 / t_b^2``, ``l_b`` the bone's length,
-    ``t_b`` the thickness of the Reeb regions it explains, ``f_b`` fading out a section that is
-    not the part's own (far wider than ``t_b``). The integral along the curve of its squared
+    How far the points along each bone lie from the area centroids of the mesh's cross-sections
+    through them, across the bone (:mod:`..geometry.sections`), relative to the part's
+    thickness: ``sum_b (l_b / D) mean_q |q - c_q|^2 / t_b^2`` over the bone's two Gauss
+    points ``q``, ``l_b`` the bone's length, ``t_b`` the thickness of the Reeb regions it
+    explains, each section taken within a disc of a few ``t_b`` (the part's own). The integral along the curve of its squared
     distance from the sections' centres, each in units of its part's thickness. ``t_b`` is the
     mesh's, not the skeleton's: a bone cannot lower the term by changing its radius.
 smooth
@@ -139,29 +139,24 @@ def fit_term(Z, samples, bones, bone, t, area, scale, *, jacobian=True):
                      [(G * t[:, None]).ravel(), (G * (1.0 - t)[:, None]).ravel()], n, J)
 
 
-def _fade(x, lo, hi):
-    """sqrt of a smoothstep falling from 1 at ``x <= lo`` to 0 at ``x >= hi``, and its
-    derivative in ``x``."""
-    t = np.clip((hi - x) / (hi - lo), 0.0, 1.0)
-    q = np.sqrt(3.0 - 2.0 * t)
-    inner = (t > 0) & (t < 1)
-    d = np.where(inner, (q - t / q) * (-1.0 / (hi - lo)), 0.0)
-    return t * q, d
-
-
+#: Where along a bone the centring is measured, and how much each point weighs: the two-point
+#: Gauss rule, exact for the integral of a squared offset that varies linearly along the bone
+#: (a zig-zag whose bones' middles sit on the centres is off them here).
+GAUSS_U = np.array([0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0)])
 
 
 def centre_term(Z, bones, mesh, D, thick, *, jacobian=True):
-    """Residuals ``sqrt(l_b / D) f_b (q_b - c_b) / t_b`` (3 per bone whose section was found)
-    and their Jacobian: ``q_b`` the bone's middle, ``c_b`` the centroid of the cross-section
-    through it across the bone, ``l_b`` the bone's length, ``t_b = thick[b]`` the thickness of
-    its part (the mean thickness of the samples mapped to it), ``f_b`` fading the section out
-    where it is not the part's own: its rms spread from ``own_section[0]`` to
-    ``own_section[1]`` times ``t_b`` (:class:`..config.ObjectiveConfig`). ``mesh`` is a
-    :class:`..mesh.Mesh`.
+    """Residuals ``sqrt(l_b / (2D)) (q - c) / t_b`` at the two Gauss points ``q`` of every
+    bone (3 each) and their Jacobian: ``c`` the area centroid of the solid's cross-section
+    through ``q`` across the bone within ``section_reach`` thicknesses of ``q``
+    (:class:`..config.ObjectiveConfig`, :mod:`..geometry.disc_sections`), ``l_b`` the bone's
+    length, ``t_b = thick[b]`` the thickness of its part. The disc keeps the section the
+    part's own (at a limb's root the plane cuts the body too, mostly beyond it) and its centroid
+    continuous: where two loops of a section join at a saddle the region grows by the area
+    joining them, where choosing one loop would jump. ``mesh`` is a :class:`..mesh.Mesh`.
 
-    The middle of every bone, not the joints: a long bone cutting across a part is off its
-    sections' centres there however well its two ends are placed.
+    Points along the bones, not the joints: a long bone cutting across a part is off its
+    sections' centres however well its two ends are placed.
 
     ``jacobian=None`` returns the value per bone instead (for the moves' estimates)."""
     return bone_centres(Z[:, :3][bones[:, 0]], Z[:, :3][bones[:, 1]], bones, mesh, D, thick,
@@ -172,44 +167,38 @@ def bone_centres(A, B, bones, mesh, D, thick, n_joints, *, jacobian=True):
     """The centre residuals of segments ``A[i] -> B[i]`` (rows of ``bones`` give their joints,
     for the Jacobian); see :func:`centre_term`."""
     nb = len(A)
-    rows_of = np.arange(nb)
     T = B - A
     L = row_norm(T)
-    ok = L > 0
-    A, B, T, L, rows_of = A[ok], B[ok], T[ok], L[ok], rows_of[ok]
+    ok = np.flatnonzero(L > 0)
+    nq = len(GAUSS_U)
+    rows_of = np.repeat(ok, nq)                       # the bone of each point
+    u = np.tile(GAUSS_U, len(ok))                     # q = u A + (1 - u) B
+    A, B, L = A[rows_of], B[rows_of], L[rows_of]
+    n = (B - A) / L[:, None]
     tb = np.asarray(thick, np.float64)[rows_of]
-    n = T / L[:, None]
-    Q = 0.5 * (A + B)
-    cfg = CONFIG.objective
-    sec = mesh.sections(Q, n, cfg.section_reach * tb, jacobian=bool(jacobian))
-    fq, dfq = _fade(sec.spread / tb, *cfg.own_section)
-    f = np.flatnonzero(sec.found & (fq > 0))
-    n, L, tb, fq, dfq, Q, rows_of = n[f], L[f], tb[f], fq[f], dfq[f], Q[f], rows_of[f]
-    off = Q - sec.centroid[f]
-    sw = np.sqrt(L / D)
-    amp = sw * fq
-    res = (amp[:, None] * off / tb[:, None]).ravel()
+    Q = u[:, None] * A + (1.0 - u)[:, None] * B
+    sec = mesh.discs(Q, n, CONFIG.objective.section_reach * tb, jacobian=bool(jacobian))
+    off = Q - sec.centroid
+    sw = np.sqrt(L / (nq * D))
+    res = (sw[:, None] * off / tb[:, None]).ravel()
     if jacobian is None:
         return np.bincount(rows_of, (res.reshape(-1, 3) ** 2).sum(1), nb)
     if not jacobian:
         return res, None
-    m = len(f)
+    m = len(Q)
     eye = np.eye(3)
     P = (eye - n[:, :, None] * n[:, None, :]) / L[:, None, None]    # dn/dx_j = -dn/dx_i = P
-    dcx = sec.dc_dx[f]
-    dcn = np.einsum("kij,kjl->kil", sec.dc_dn[f], P)
-    dsx = sec.ds_dx[f]
-    dsn = np.einsum("kj,kjl->kl", sec.ds_dn[f], P)
-    # q = (x_i + x_j)/2; residual = amp (q - c) / t, amp = sqrt(L/D) f(spread / t)
-    # d/dx_i: (q - c) part: I/2 - dcx/2 + dcn;   d/dx_j: I/2 - dcx/2 - dcn
-    # amp: dL/dx_i = -n, dL/dx_j = n; d spread = dsx/2 -+ dsn
-    gl = fq / (2.0 * np.sqrt(L * D))
-    gs = sw * dfq / tb
+    dcn = np.einsum("kij,kjl->kil", sec.dc_dn, P)
+    # residual = sw (q - c) / t, sw = sqrt(L / (nq D)):
+    # d(q - c)/dx_i = u (I - dc/dx) + dcn,  d(q - c)/dx_j = (1 - u)(I - dc/dx) - dcn;
+    # dL/dx_i = -n, dL/dx_j = n
+    gl = 1.0 / (2.0 * np.sqrt(L * nq * D))
     od = off / tb[:, None]
-    Ti = amp[:, None, None] / tb[:, None, None]
-    half = 0.5 * (eye - dcx)
-    blocks = {0: Ti * (half + dcn) + od[:, :, None] * (-gl[:, None] * n + gs[:, None] * (0.5 * dsx - dsn))[:, None, :],
-              1: Ti * (half - dcn) + od[:, :, None] * (gl[:, None] * n + gs[:, None] * (0.5 * dsx + dsn))[:, None, :]}
+    Ti = sw[:, None, None] / tb[:, None, None]
+    I_c = eye - sec.dc_dx
+    uu = u[:, None, None]
+    blocks = {0: Ti * (uu * I_c + dcn) - od[:, :, None] * (gl[:, None] * n)[:, None, :],
+              1: Ti * ((1.0 - uu) * I_c - dcn) + od[:, :, None] * (gl[:, None] * n)[:, None, :]}
     rows, cols, vals = [], [], []
     r3 = np.repeat(3 * np.arange(m)[:, None] + np.arange(3), 3, axis=1)          # (m, 9)
     for end in (0, 1):
