@@ -97,9 +97,9 @@ class ObjectiveConfig:
     #: its point: all of a round part's (its outline is about one thickness away), little of
     #: the body a limb's root cuts across
     section_reach: float = 2.0
-    #: a bone keeps this share of its part's thickness inside the surface (containment):
-    #: grazing the surface from inside, a curve is outside one step of the search later
-    contain_margin: float = 0.25
+    #: a bone keeps this share of a spacing inside the surface (containment): grazing the
+    #: surface from inside, a curve is outside one step of the search later
+    contain_margin: float = 0.1
     #: points along every bone (ends included) where containment is measured
     bone_points: int = 9
     #: the uniform subset of samples hashes each sample's geodesic distance this many times

@@ -32,13 +32,13 @@ def _smooth(Z, k, a, b, D):
     return smooth_triplets(Z, k, a, b, D, jacobian=None)
 
 
-def _contain(objective, A, B, thick):
-    """Containment value of the bones ``A -> B`` (rows) of thickness ``thick``, as
+def _contain(objective, A, B):
+    """Containment value of the bones ``A -> B`` (rows), as
     :func:`..objective.terms.contain_term` computes it."""
     s = objective.samples
     return bone_contain(A, B, np.zeros((len(A), 2), np.int64), objective.mesh.inside,
                         objective.tree, s.points, s.normal, objective.D,
-                        objective.margin(np.asarray(thick, np.float64)), 0, jacobian=None)
+                        objective.margin(len(A)), 0, jacobian=None)
 
 
 def merge_gains(objective, graph, evaluation):
@@ -116,8 +116,8 @@ def merge_gains(objective, graph, evaluation):
         new = bone_centres(X[a], X[b], np.stack([a, b], 1), objective.section_mesh, D,
                            0.5 * (thick[b1] + thick[b2]), J, jacobian=None)
         d_centre = new - old[b1] - old[b2]
-    old_con = _contain(objective, X[bones[:, 0]], X[bones[:, 1]], thick)
-    d_contain = (_contain(objective, X[a], X[b], 0.5 * (thick[b1] + thick[b2]))
+    old_con = _contain(objective, X[bones[:, 0]], X[bones[:, 1]])
+    d_contain = (_contain(objective, X[a], X[b])
                  - old_con[b1] - old_con[b2])
     delta = (d_fit + w.centre * d_centre + w.smooth * d_smooth + w.contain * d_contain
              - w.joint)
@@ -139,7 +139,7 @@ def prune_gains(objective, graph, evaluation, chains):
     thick = objective.thickness(graph)
     cen = (bone_centres(X[bones[:, 0]], X[bones[:, 1]], bones, objective.section_mesh, D, thick,
                         len(Z), jacobian=None) if w.centre else np.zeros(B))
-    con = _contain(objective, X[bones[:, 0]], X[bones[:, 1]], thick)
+    con = _contain(objective, X[bones[:, 0]], X[bones[:, 1]])
     k_all, a_all, b_all = chain_neighbours(bones, len(Z))
     sm_all = smooth_triplets(Z, k_all, a_all, b_all, D, jacobian=None)
     sm_of = np.zeros(len(Z))

@@ -73,9 +73,13 @@ class Objective:
     sections : Mesh, optional
         The mesh the centring's cross-sections are cut from (a coarser copy at the samples'
         resolution, :meth:`..mesh.Mesh.coarsened`; default ``mesh``).
+    resolution : float, optional
+        The finest length the method resolves (the first approximation's spacing times D; by
+        default the least of ``scale``): containment keeps bones a share of it inside.
     """
 
-    def __init__(self, mesh, samples, weights: Weights, scale, paper=None, sections=None):
+    def __init__(self, mesh, samples, weights: Weights, scale, paper=None, sections=None,
+                 resolution=None):
         self.mesh, self.samples, self.weights = mesh, samples, weights
         self.section_mesh = mesh if sections is None else sections
         self.scale = np.asarray(scale, np.float64)
@@ -83,6 +87,8 @@ class Objective:
         self.D = mesh.D
         self.tree = cKDTree(samples.points)
         self.region = None if paper is None else np.asarray(paper, np.int64)
+        self.resolution = float(np.min(self.scale, initial=mesh.D) if resolution is None
+                                else resolution)
 
     @classmethod
     def for_first_approximation(cls, mesh, samples, region, graph, weights, spacing, sections=None):
@@ -94,7 +100,7 @@ class Objective:
         _, _, d2 = closest_on_bones(samples.points, graph.joints, graph.bones, cand)
         floor = CONFIG.objective.thickness_floor * spacing * mesh.D
         return cls(mesh, samples, weights, np.maximum(np.sqrt(d2), floor), paper=region,
-                   sections=sections)
+                   sections=sections, resolution=spacing * mesh.D)
 
     def sigma(self, graph):
         """(bone, t) of every sample: its point on the bone whose cone's surface is nearest
@@ -116,10 +122,10 @@ class Objective:
             return np.asarray(graph.thick)
         return self.measure_thickness(graph)
 
-    def margin(self, thick=None) -> np.ndarray:
-        """How deep inside each bone must keep (containment): a share of its part's
-        thickness (the current graph's, unless given)."""
-        return CONFIG.objective.contain_margin * (self._thick if thick is None else thick)
+    def margin(self, n_bones) -> np.ndarray:
+        """How deep inside each bone must keep (containment): a share of the resolution (of
+        a part's thickness, a flap's would be out of reach)."""
+        return np.full(n_bones, CONFIG.objective.contain_margin * self.resolution)
 
     def measure_thickness(self, graph, bone=None) -> np.ndarray:
         """(B,) the area-weighted mean thickness of the samples nearest each bone (``bone``:
@@ -143,7 +149,7 @@ class Objective:
             out["smooth"] = (w.smooth, T.smooth_term(Z, bones, D, jacobian=jacobian))
         if w.contain:
             out["contain"] = (w.contain, T.contain_term(Z, bones, self.mesh.inside, self.tree,
-                                                        s.points, s.normal, D, self.margin(),
+                                                        s.points, s.normal, D, self.margin(len(bones)),
                                                         jacobian=jacobian))
         return out
 

@@ -34,8 +34,8 @@ smooth
 contain
     How far the bones come closer to the surface than a margin, or leave the mesh: at points
     along every bone, their signed height ``s_q`` over the surface (:func:`surface_heights`),
-    ``sum_q (l_q / D) max(0, s_q + margin_b)^2 / D^2``, ``margin_b`` a share of the bone's
-    part's thickness (``CONFIG.objective.contain_margin``).
+    ``sum_q (l_q / D) max(0, s_q + margin_b)^2 / D^2``, ``margin_b`` a share of the first
+    approximation's spacing (``CONFIG.objective.contain_margin``).
 """
 
 from __future__ import annotations
@@ -303,8 +303,8 @@ def bone_contain(A, B, bones, inside, tree, points, normals, D, margin, n_joints
     """Residuals ``sqrt(l_b / (m D)) max(0, s_q + margin_b) / D`` at the ``m`` points
     ``BONE_POINTS`` of every segment ``A[b] -> B[b]`` (length ``l_b``; rows of ``bones`` give
     its joints, for the Jacobian), ``s_q`` the point's signed height over the surface
-    (:func:`surface_heights`), ``margin_b`` how deep inside a bone must keep (a share of its
-    part's thickness: a curve grazing the surface from inside is outside a step later); and
+    (:func:`surface_heights`), ``margin_b`` how deep inside a bone must keep (a curve grazing the
+    surface from inside is outside a step later); and
     their Jacobian (the nearest sample held). ``jacobian=None`` returns the value per segment
     (for the moves' estimates)."""
     u = BONE_POINTS
