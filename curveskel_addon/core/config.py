@@ -97,6 +97,12 @@ class ObjectiveConfig:
     #: its point: all of a round part's (its outline is about one thickness away), little of
     #: the body a limb's root cuts across
     section_reach: float = 2.0
+    #: the fit's distance to the silhouette is a soft minimum over each sample's nearest cones,
+    #: this many
+    soft_bones: int = 3
+    #: ... softened over this share of the part's thickness (smooth where the nearest cone
+    #: changes; at most this times log(soft_bones) below the true least distance)
+    fit_softness: float = 0.05
     #: a bone keeps this share of a spacing inside the surface (containment): grazing the
     #: surface from inside, a curve is outside one step of the search later
     contain_margin: float = 0.1

@@ -263,7 +263,7 @@ def _all_bones(P, X, bones):
     return bone, t, d2
 
 
-def nearest_on_silhouette(points, joints, bones):
+def nearest_on_silhouette(points, joints, bones, k: int = 1):
     """For each point, the bone whose round cone's surface is nearest along the bone's own
     normal: the bone minimising ``|p - s_b| - r_b(s_b)``, ``s_b`` the point's closest point on
     bone ``b`` and ``r_b`` the radius there (linear between the joints' radii).
@@ -279,12 +279,15 @@ def nearest_on_silhouette(points, joints, bones):
     joints : (J, 4) float
     bones : (B, 2) int
 
+    k : int
+        How many bones to return per point (the ``k`` least values, least first).
+
     Returns
     -------
-    bone : (n,) int
-    t : (n,) float
+    bone : (n,) int, or (n, k) for ``k > 1``
+    t : (n,) float, or (n, k)
         sigma = t x_i + (1 - t) x_j on bone (i, j), as :func:`closest_on_bones`.
-    dist2 : (n,) float
+    dist2 : (n,) float, or (n, k)
         Squared distance from the point to sigma.
 
     Examples
@@ -302,18 +305,37 @@ def nearest_on_silhouette(points, joints, bones):
         return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
     if nb == 0:
         raise CurveSkelError("nearest_on_silhouette: the skeleton has no bones")
-    xi, xj = Z[bones[:, 0], :3], Z[bones[:, 1], :3]
+    # about the points' centre, with BLAS products (the same algebra as _screen, in float64):
+    # num = p.d - a.d, t = clip(num / d.d), |p - s|^2 = |p|^2 - 2 p.a + a.a - t (2 num - t d.d)
+    o = 0.5 * (col_min(P) + col_max(P))
+    Pc = P - o
+    A = Z[bones[:, 1], :3] - o
+    Dv = Z[bones[:, 0], :3] - Z[bones[:, 1], :3]
+    DD = np.einsum("ij,ij->i", Dv, Dv)
+    AD = np.einsum("ij,ij->i", A, Dv)
+    AA = np.einsum("ij,ij->i", A, A)
+    inv = np.divide(1.0, DD, out=np.zeros_like(DD), where=DD > 0)
     ri, rj = Z[bones[:, 0], 3], Z[bones[:, 1], 3]
-    d = xi - xj
-    dd = np.einsum("ij,ij->i", d, d)
-    inv = np.divide(1.0, dd, out=np.zeros_like(dd), where=dd > 0)
-    bone = np.zeros(n, np.int64)
+    At, Dt = np.ascontiguousarray(-2.0 * A.T), np.ascontiguousarray(Dv.T)
+    kk = min(int(k), nb)
+    bone = np.zeros((n, kk), np.int64)
     step = max(1, _NUM.block // nb)
     for s in range(0, n, step):
-        w = P[s:s + step, None, :] - xj[None]                  # (k, B, 3)
-        t = np.clip(np.einsum("kbc,bc->kb", w, d) * inv, 0.0, 1.0)
-        diff = w - t[:, :, None] * d[None]
-        value = np.sqrt(np.einsum("kbc,kbc->kb", diff, diff)) - (t * ri + (1.0 - t) * rj)
-        bone[s:s + step] = np.argmin(value, axis=1)
-    t, d2 = _on_bones(P, Z[:, :3], bones, bone)
-    return bone, t, d2
+        p = Pc[s:s + step]
+        d2 = _screen(p @ Dt, p @ At, AD, AA, inv, DD)
+        d2 += np.einsum("ij,ij->i", p, p)[:, None]
+        t = np.clip((p @ Dt - AD) * inv, 0.0, 1.0)
+        value = np.sqrt(np.maximum(d2, 0.0)) - (rj + t * (ri - rj))
+        if kk == 1:
+            bone[s:s + step, 0] = np.argmin(value, axis=1)
+            continue
+        part = np.argpartition(value, kk - 1, axis=1)[:, :kk] if kk < nb else \
+            np.broadcast_to(np.arange(nb), value.shape).copy()
+        rows = np.arange(len(p))[:, None]
+        order = np.argsort(value[rows, part], axis=1, kind="stable")
+        bone[s:s + step] = part[rows, order]
+    flat = bone.ravel()
+    t, d2 = _on_bones(np.repeat(P, kk, axis=0), Z[:, :3], bones, flat)
+    if k == 1:
+        return bone[:, 0], t, d2
+    return bone, t.reshape(n, kk), d2.reshape(n, kk)

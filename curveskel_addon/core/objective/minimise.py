@@ -50,7 +50,7 @@ def minimise(objective, graph, *, max_iterations, tolerance, fixed=None,
     mu = 1e-3
     it = 0
     for it in range(1, max_iterations + 1):
-        H, g = objective.model(graph, (ev.bone, ev.t))
+        H, g = objective.model(graph, ev.sigma)
         Hf, gf = H[free][:, free], g[free]
         dg = Hf.diagonal().copy()
         dg = np.maximum(dg, 1e-12 * max(float(dg.max(initial=0.0)), 1e-300))

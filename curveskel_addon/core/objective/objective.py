@@ -47,12 +47,14 @@ def weights_for(params) -> Weights:
 
 @dataclass(frozen=True)
 class Evaluation:
-    """J of one skeleton: its value, each term's (unweighted) value and sigma."""
+    """J of one skeleton: its value, each term's (unweighted) value and sigma (``bone``, ``t``:
+    each sample's nearest cone; ``sigma``: its candidates, as :meth:`Objective.sigma`)."""
 
     value: float
     terms: dict
     bone: np.ndarray = field(repr=False)
     t: np.ndarray = field(repr=False)
+    sigma: tuple = field(repr=False, default=None)
 
 
 class Objective:
@@ -103,10 +105,12 @@ class Objective:
                    sections=sections, resolution=spacing * mesh.D)
 
     def sigma(self, graph):
-        """(bone, t) of every sample: its point on the bone whose cone's surface is nearest
-        (:func:`..geometry.segments.nearest_on_silhouette`)."""
-        bone, t, _ = nearest_on_silhouette(self.samples.points, graph.joints, graph.bones)
-        return bone, t
+        """(bone, t) of every sample, each (s, k): its points on the ``k`` bones whose cones'
+        surfaces are nearest, nearest first (:func:`..geometry.segments.nearest_on_silhouette`;
+        ``k = CONFIG.objective.soft_bones``, the fit's soft minimum runs over them)."""
+        bone, t, _ = nearest_on_silhouette(self.samples.points, graph.joints, graph.bones,
+                                           CONFIG.objective.soft_bones)
+        return bone.reshape(len(t), -1), t.reshape(len(t), -1)
 
     def paper_sigma(self, graph):
         """The paper's sigma: each sample on the bones of its own Reeb region."""
@@ -131,7 +135,7 @@ class Objective:
         """(B,) the area-weighted mean thickness of the samples nearest each bone (``bone``:
         their bones, if known); the median where none is."""
         if bone is None:
-            bone = self.sigma(graph)[0]
+            bone = self.sigma(graph)[0][:, 0]
         B = len(graph.bones)
         w = self.samples.weights
         W = np.bincount(bone, w, B)
@@ -140,7 +144,8 @@ class Objective:
 
     def _blocks(self, Z, bones, bone, t, jacobian):
         w, s, D = self.weights, self.samples, self.D
-        out = {"fit": (1.0, T.fit_term(Z, s, bones, bone, t, self.area, self.scale,
+        out = {"fit": (1.0, T.fit_term(Z, s, bones, bone, self.area, self.scale,
+                                       softness=CONFIG.objective.fit_softness,
                                        jacobian=jacobian))}
         if w.centre:
             out["centre"] = (w.centre, T.centre_term(Z, bones, self.section_mesh, D, self._thick,
@@ -156,6 +161,7 @@ class Objective:
     def evaluate(self, graph, sigma=None) -> Evaluation:
         """J of ``graph`` (sigma: its own nearest points unless given)."""
         bone, t = self.sigma(graph) if sigma is None else sigma
+        bone, t = np.asarray(bone).reshape(len(t), -1), np.asarray(t).reshape(len(t), -1)
         self._thick = self.thickness(graph)
         Z = np.asarray(graph.joints)
         blocks = self._blocks(Z, graph.bones, bone, t, False)
@@ -164,7 +170,7 @@ class Objective:
         terms["joints"] = float(graph.n_joints)
         terms["tips"] = float(graph.n_leaves)
         value += self.weights.joint * terms["joints"] + self.weights.branch * terms["tips"]
-        return Evaluation(float(value), terms, bone, t)
+        return Evaluation(float(value), terms, bone[:, 0], t[:, 0], (bone, t))
 
     def paper_energy(self, graph) -> float:
         """The paper's E (eq. 8 over the samples, its own sigma), in units of D: reported."""
