@@ -8,6 +8,7 @@ J falls.
         minimise J                                                  -> "fit"
         merge the chain joints whose removal lowers J                 -> "merge"
         prune the leaf branches whose removal lowers J                -> "prune"
+        a joint into the bones that explain their share worst         -> "insert"
         split a junction in two, or join two into one, if J falls    -> "split" / "contract"
     until no move lowers J
     minimise J to convergence                                         -> "fit"
@@ -30,7 +31,7 @@ import numpy as np
 from .config import CONFIG
 from .moves.gains import merge_gains, prune_gains
 from .moves.topology import (contract_bones, junction_splits, leaf_chains, merge_joints,
-                             prune_chains, split_joint)
+                             prune_chains, split_bones, split_joint)
 from .objective.minimise import minimise
 
 __all__ = ["search", "search_steps", "budget", "SearchLog"]
@@ -141,6 +142,20 @@ def _prunes(objective, graph, ev, refit):
                 np.asarray(batch, np.int64), refit)
 
 
+def _splits(objective, graph, ev, refit, max_joints):
+    """One round of bone splits: a joint in the middle of each of the bones that explain
+    their share of J worst (more than a joint's price), kept if J falls after ``refit``
+    steps (the merges' counterpart: a chain merged too far, or a bone that must bend to stay
+    inside, gets its joint back). (graph, ev, count) or None."""
+    room = (max_joints - graph.n_joints) if max_joints else len(graph.bones)
+    if room <= 0:
+        return None
+    share = objective.per_bone(graph, ev)
+    order = np.argsort(-share, kind="stable")
+    batch = order[share[order] > objective.weights.joint][:min(room, CONFIG.search.singles)]
+    return _try(objective, graph, ev, lambda g, bt: split_bones(g, bt), batch, refit)
+
+
 def _junctions(objective, graph, ev, refit, max_joints):
     """The best of: a junction of four bones split in two (a crossing that is two
     junctions and a rung; not at the joint budget), or a bone between two junctions contracted
@@ -230,7 +245,9 @@ def search_steps(objective, graph, log: SearchLog, *, max_joints=0, max_iteratio
             graph, ev = g2, ev2
             yield graph, log.add("fit", graph, ev, iterations=int(it))
         for name, move in (("merge", lambda: _merges(objective, graph, ev, 0)),
-                           ("prune", lambda: _prunes(objective, graph, ev, cfg.refit_steps))):
+                           ("prune", lambda: _prunes(objective, graph, ev, cfg.refit_steps)),
+                           ("insert", lambda: _splits(objective, graph, ev, cfg.refit_steps,
+                                                      max_joints))):
             kept = move()
             if kept is not None:
                 graph, ev, n = kept

@@ -172,6 +172,27 @@ class Objective:
         value += self.weights.joint * terms["joints"] + self.weights.branch * terms["tips"]
         return Evaluation(float(value), terms, bone[:, 0], t[:, 0], (bone, t))
 
+    def per_bone(self, graph, evaluation) -> np.ndarray:
+        """(B,) each bone's share of J's continuous terms: the fit of the samples nearest it,
+        its centring and containment (weighted as in J)."""
+        Z = np.asarray(graph.joints)
+        bones, B = graph.bones, len(graph.bones)
+        self._thick = self.thickness(graph)
+        w, s, D = self.weights, self.samples, self.D
+        r = T.fit_term(Z, s, bones, evaluation.sigma[0], self.area, self.scale,
+                       softness=CONFIG.objective.fit_softness, jacobian=False)[0]
+        out = np.bincount(evaluation.bone, r * r, B)
+        X = Z[:, :3]
+        if w.centre:
+            out += w.centre * T.bone_centres(X[bones[:, 0]], X[bones[:, 1]], bones,
+                                             self.section_mesh, D, self._thick, len(Z),
+                                             jacobian=None)
+        if w.contain:
+            out += w.contain * T.bone_contain(X[bones[:, 0]], X[bones[:, 1]], bones,
+                                              self.mesh.inside, self.tree, s.points, s.normal,
+                                              D, self.margin(B), len(Z), jacobian=None)
+        return out
+
     def paper_energy(self, graph) -> float:
         """The paper's E (eq. 8 over the samples, its own sigma), in units of D: reported."""
         if self.region is None:
