@@ -80,7 +80,7 @@ def _merge_batch(k, a, b, delta, bones, n_joints, *, gain=True):
     return np.asarray(out, np.int64)
 
 
-def _try(objective, graph, ev, make, batch, refit):
+def _try(objective, graph, ev, make, batch, refit, singles=None):
     """Apply ``make(graph, batch)`` for the whole batch and keep it if the exact J falls (after
     ``refit`` minimisation steps; 0: the joints held). Otherwise the first few candidates are
     tried alone (an estimate holds sigma, which a move can shift): the batch without those that
@@ -102,7 +102,7 @@ def _try(objective, graph, ev, make, batch, refit):
         return trial, ev_t, len(batch)
     if len(batch) == 1:
         return None
-    n = min(CONFIG.search.singles, len(batch))
+    n = min(CONFIG.search.singles if singles is None else singles, len(batch))
     good, best = [], None
     for i in range(n):
         tr, et = attempt(batch[i:i + 1])
@@ -153,7 +153,8 @@ def _splits(objective, graph, ev, refit, max_joints):
     share = objective.per_bone(graph, ev)
     order = np.argsort(-share, kind="stable")
     batch = order[share[order] > objective.weights.joint][:min(room, CONFIG.search.singles)]
-    return _try(objective, graph, ev, lambda g, bt: split_bones(g, bt), batch, refit)
+    # no estimate ranks the bones better than their share: the batch, else the worst alone
+    return _try(objective, graph, ev, lambda g, bt: split_bones(g, bt), batch, refit, singles=1)
 
 
 def _junctions(objective, graph, ev, refit, max_joints):

@@ -48,6 +48,7 @@ def minimise(objective, graph, *, max_iterations, tolerance, fixed=None,
         for c in range(3):
             free[4 * fx + c] = False
     mu = 1e-3
+    nu = 2.0
     it = 0
     for it in range(1, max_iterations + 1):
         H, g = objective.model(graph, ev.sigma)
@@ -63,22 +64,17 @@ def minimise(objective, graph, *, max_iterations, tolerance, fixed=None,
                 continue
             trial = _moved(graph, free, step)
             ev_t = objective.evaluate(trial)
+            # the model's predicted decrease, for Nielsen's damping update
+            predicted = -(gf @ step + 0.5 * step @ (Hf @ step))
             if ev_t.value < ev.value:
                 kept = True
-                mu = max(mu / 3.0, 1e-12)
-                # sigma held, the model is stiffer than J along a curve (a joint slides and the
-                # samples' sigma slide with it): once the model is trusted (little damping),
-                # while a longer step along the same direction lowers J further, take it
-                scale = 2.0
-                while mu < 1e-4:
-                    longer = _moved(graph, free, scale * step)
-                    ev_l = objective.evaluate(longer)
-                    if ev_l.value >= ev_t.value:
-                        break
-                    trial, ev_t = longer, ev_l
-                    scale *= 2.0
+                rho = (ev.value - ev_t.value) / max(predicted, 1e-300)
+                mu *= max(1.0 / 3.0, 1.0 - (2.0 * min(rho, 1.0) - 1.0) ** 3)
+                mu = max(mu, 1e-12)
+                nu = 2.0
                 break
-            mu *= 4.0
+            mu *= nu
+            nu *= 2.0
         if not kept:
             break
         drop = ev.value - ev_t.value
