@@ -58,9 +58,10 @@ class GenerateSettings:
     solver: EnumProperty(name="Solver", description="How the skeleton is found",
                          items=_solver_items(), default=_D.solver)
     max_iterations: IntProperty(name="Iterations", description="At most this many steps per "
-                                "minimisation (Objective Search) or gradient-descent iterations "
-                                "(Paper's Method)", default=_D.max_iterations, min=0, max=100_000,
-                                soft_max=1000)
+                                "minimisation between the search's moves (Objective Search; the "
+                                "last one, to convergence, up to 100 at least) or gradient-descent "
+                                "iterations (Paper's Method)", default=_D.max_iterations, min=0,
+                                max=100_000, soft_max=1000)
     tolerance: FloatProperty(name="Tolerance", description="Paper's Method: stop when an "
                              "iteration lowers the energy by less than this fraction of the "
                              "initial energy", default=_D.tolerance, min=1e-9, max=1.0,

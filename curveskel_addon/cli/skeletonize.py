@@ -55,10 +55,11 @@ _HELP = {
     # advanced
     "solver": "'lm' = the search for the minimum of J (Levenberg-Marquardt on the joints and "
               "radii, topology moves kept only when J falls); 'paper' = the paper's method "
-              "(gradient descent on E with the exact line search, eqs. 28-31; as --paper) "
-              "(default %(default)s)",
-    "max_iterations": "at most this many steps per minimisation of J (lm) or gradient-descent "
-                      "iterations (paper) (default %(default)s)",
+              "(gradient descent on E with the exact line search, eqs. 28-31; --paper also "
+              "sets the paper's other settings) (default %(default)s)",
+    "max_iterations": "lm: at most this many steps per minimisation of J between the search's "
+                      "moves (the last one, to convergence, takes up to 100 at least); paper: "
+                      "gradient-descent iterations (default %(default)s)",
     "tolerance": "paper: stop when an iteration lowers E by less than TOLERANCE * E0 (the "
                  "paper's 1e-3; default %(default)s)",
     "seed": "where the pole search starts: 0 (default) starts at the vertex farthest from the "
