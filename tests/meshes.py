@@ -142,7 +142,7 @@ def two_capsules():
 
 # -- shapes with a known curve skeleton (issue 10), and their analytic curves --------------------
 # A curve is returned as (X (k, 3) float, bones (b, 2) int): any form
-# ``curveskel_addon.core.quality.curve_distances`` takes.
+# ``curveskel_addon.measure.quality.curve_distances`` takes.
 
 __all__ += ["board", "board_with_tab", "BOARD"]
 __all__ += ["plate_with_holes", "box_bar", "t_beam", "t_beam_centroid_y", "bent_tube", "polyline", "union_curves",
