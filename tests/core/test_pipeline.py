@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from curveskel_addon.core import CurveSkelError, Skeleton, SkeletonParams, skeletonize
-from meshes import capsule, star, torus, two_capsules
+from meshes import capsule, star, two_capsules
 from skeletons import procedural_skeleton, shared_skeleton, topology
 
 
