@@ -25,7 +25,8 @@ from curveskel_addon.mesh_files import read_mesh
 __all__ = ["SHARED", "HELDOUT", "shared_mesh", "shared_skeleton", "procedural_mesh",
            "procedural_skeleton", "topology", "bone_points", "inside_fraction", "unit_D",
            "bbox_D", "curve_samples", "distance_to_curve", "curve_gap", "curve_mean_gap",
-           "turning_angles", "total_turning", "chain_straightness"]
+           "turning_angles", "total_turning", "bending", "chain_straightness",
+           "silhouette_distance"]
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 HELDOUT = Path(__file__).resolve().parent / "data" / "heldout"
@@ -197,6 +198,13 @@ def total_turning(joints, bones) -> float:
     return float(turning_angles(joints, bones)[1].sum())
 
 
+def bending(joints, bones) -> float:
+    """The chains' discrete bending: the sum of ``1 - cos(theta)`` over the joints of degree 2
+    (0 straight on, 1 at a right angle): how much the chains turn, each turn counted by its
+    sharpness, whatever the curve's size."""
+    return float((1.0 - np.cos(np.radians(turning_angles(joints, bones)[1]))).sum())
+
+
 def chain_straightness(joints, bones) -> float:
     """The largest distance of a joint from the straight line through the curve's two farthest
     joints, relative to that line's length (0: every joint on one line)."""
@@ -210,3 +218,36 @@ def chain_straightness(joints, bones) -> float:
     u = u / L
     off = (X - X[i]) - ((X - X[i]) @ u)[:, None] * u
     return float(np.linalg.norm(off, axis=1).max() / L)
+
+
+def silhouette_distance(P, joints, bones, block=2048):
+    """(n,) signed distance of each point to the skeleton's silhouette, the union of its bones'
+    round cones (the balls at the joints and the cones tangent to each bone's two balls):
+    negative inside. Exact (Quilez's round-cone distance), the minimum over the bones."""
+    P = np.asarray(P, np.float64).reshape(-1, 3)
+    Jn = np.asarray(joints, np.float64)
+    bones = np.asarray(bones, np.int64).reshape(-1, 2)
+    a, b = Jn[bones[:, 0], :3], Jn[bones[:, 1], :3]
+    r1, r2 = np.abs(Jn[bones[:, 0], 3]), np.abs(Jn[bones[:, 1], 3])
+    swap = r2 > r1                                   # the formula wants r1 >= r2
+    a[swap], b[swap] = b[swap].copy(), a[swap].copy()
+    r1[swap], r2[swap] = r2[swap].copy(), r1[swap].copy()
+    ba = b - a
+    l2 = np.maximum((ba * ba).sum(1), 1e-300)
+    rr = r1 - r2
+    a2 = l2 - rr * rr
+    out = np.empty(len(P))
+    for s0 in range(0, len(P), block):
+        pa = P[s0:s0 + block, None, :] - a[None]
+        y = (pa * ba[None]).sum(-1)
+        z = y - l2
+        x2 = ((pa * l2[None, :, None] - ba[None] * y[..., None]) ** 2).sum(-1)
+        y2, z2 = y * y * l2, z * z * l2
+        k = rr * rr * x2
+        far = np.sign(z) * a2 * z2 > k
+        near = np.sign(y) * a2 * y2 < k
+        d = (np.sqrt(np.maximum(x2 * a2 / l2, 0.0)) + y * rr) / l2 - r1
+        d = np.where(near, np.sqrt(x2 + y2) / l2 - r1, d)
+        d = np.where(far, np.sqrt(x2 + z2) / l2 - r2, d)
+        out[s0:s0 + block] = d.min(axis=1)
+    return out
