@@ -87,8 +87,9 @@ def bent_capsule(radius: float = 0.5, arm: float = 4.0, n: int = 30, n_around: i
     return tube_along(path, radius, n_around)
 
 
-def torus(R: float = 3.0, r: float = 1.0, n_major: int = 64, n_minor: int = 24):
-    """Torus around z: genus 1."""
+def torus(R: float = 3.0, r: float = 1.0, n_major: int = 64, n_minor: int = 24, diagonal: int = 0):
+    """Torus around z: genus 1. Each quad of the (u, v) grid is split along one diagonal
+    (``diagonal`` 0) or the other (1): the same vertices, another triangulation."""
     u = 2 * np.pi * np.arange(n_major) / n_major
     v = 2 * np.pi * np.arange(n_minor) / n_minor
     U, W = np.meshgrid(u, v, indexing="ij")
@@ -101,7 +102,10 @@ def torus(R: float = 3.0, r: float = 1.0, n_major: int = 64, n_minor: int = 24):
     b = ((i + 1) % n_major) * n_minor + j
     c = ((i + 1) % n_major) * n_minor + (j + 1) % n_minor
     d = i * n_minor + (j + 1) % n_minor
-    F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    if diagonal:
+        F = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)])
+    else:
+        F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
     if _signed_volume(V, F) < 0:
         F = F[:, ::-1].copy()
     return V, F.astype(np.int64)
@@ -405,3 +409,70 @@ def six_part_figure(parts=SIX_PART, n_around: int = 16, head_subdivisions: int =
         ids.append(np.full(len(V), k))
         off += len(V)
     return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(ids)
+
+
+# -- awkward shapes of issue 30 (a new user's meshes, not tuned on) -----------------------------
+#: A flat hexagonal nut: across-corners radius of the hexagon, hole radius, thickness (along z).
+NUT = {"outer": 1.2, "hole": 0.5, "thickness": 0.4}
+#: A bone with two knobs at each end: a shaft along x from -shaft/2 to shaft/2 of radius
+#: ``radius``; at each end two balls of radius ``knob`` centred ``spread`` off the axis in y.
+KNOBBED = {"shaft": 4.0, "radius": 0.3, "knob": 0.45, "spread": 0.4}
+#: A T: a trunk along x from -4 to 4 (radius 1), a limb along +y from the trunk's axis to 4
+#: (radius 0.5).
+TEE = {"trunk": 4.0, "trunk_radius": 1.0, "limb": 4.0, "limb_radius": 0.5}
+__all__ += ["hex_nut", "NUT", "knobbed_bone", "KNOBBED", "tee", "TEE", "uniform_capsule"]
+
+
+def hex_nut(outer=NUT["outer"], hole=NUT["hole"], thickness=NUT["thickness"], edge: float = 0.08):
+    """A flat hexagonal prism (corners at radius ``outer`` in the xy-plane, thickness along z,
+    centred on the origin) with a round hole of radius ``hole`` through it along z (manifold3d
+    booleans), edges refined to ``edge``: a ring whose outline has six corners. Genus 1.
+    Its curve skeleton is one loop round the hole, through the middle of the material."""
+    import manifold3d as m3
+
+    prism = m3.Manifold.cylinder(thickness, outer, outer, 6, True)
+    bore = m3.Manifold.cylinder(2 * thickness, hole, hole, 48, True)
+    return _to_arrays((prism - bore).refine_to_length(edge))
+
+
+def knobbed_bone(shaft=KNOBBED["shaft"], radius=KNOBBED["radius"], knob=KNOBBED["knob"],
+                 spread=KNOBBED["spread"], edge: float = 0.08):
+    """A bone (a femur, a dog's chew): a capsule along x with two balls at each end, their
+    centres ``(+-(shaft/2 + knob/2), +-spread, 0)`` (manifold3d union), edges refined to
+    ``edge``. Its curve skeleton forks at each end, one branch into each knob."""
+    import manifold3d as m3
+
+    path = np.linspace(0, 1, 30)[:, None] * [shaft, 0.0, 0.0] - [shaft / 2, 0.0, 0.0]
+    solid = _manifold_from(*tube_along(path, radius, 24))
+    for c in knob_centres(shaft, knob, spread):
+        solid = solid + m3.Manifold.sphere(knob, 48).translate(list(c))
+    return _to_arrays(solid.refine_to_length(edge))
+
+
+def knob_centres(shaft=KNOBBED["shaft"], knob=KNOBBED["knob"], spread=KNOBBED["spread"]):
+    """(4, 3) the centres of :func:`knobbed_bone`'s knobs: -x end first."""
+    x = shaft / 2 + knob / 2
+    return np.array([[-x, -spread, 0.0], [-x, spread, 0.0], [x, -spread, 0.0], [x, spread, 0.0]])
+
+
+def tee(trunk=TEE["trunk"], trunk_radius=TEE["trunk_radius"], limb=TEE["limb"],
+        limb_radius=TEE["limb_radius"], n_around: int = 32):
+    """A trunk (a capsule along x from -trunk to trunk) and a thinner limb (a capsule along +y
+    from the trunk's axis to ``limb``), united (manifold3d). Its curve skeleton: the trunk's
+    axis and the limb's, meeting in one junction on the trunk's axis."""
+    a = np.linspace(-trunk, trunk, 40)[:, None] * [1.0, 0, 0]
+    b = np.linspace(0, limb, 20)[:, None] * [0, 1.0, 0]
+    return _to_arrays(_manifold_from(*tube_along(a, trunk_radius, n_around))
+                      + _manifold_from(*tube_along(b, limb_radius, n_around)))
+
+
+def uniform_capsule(radius: float = 0.4, height: float = 2.0, edge: float | None = None):
+    """trimesh's ``creation.capsule(height, radius)`` shape (cap centres at z = -height/2 and
+    height/2) triangulated evenly: rings as far apart as the points around them (``edge``,
+    default a 32nd of the circumference), caps of as many rings."""
+    edge = 2 * np.pi * radius / 32 if edge is None else edge
+    n_around = int(np.ceil(2 * np.pi * radius / edge))
+    n_body = int(np.ceil(height / edge)) + 1
+    cap_rings = int(np.ceil(np.pi * radius / 2 / edge))
+    path = np.stack([np.zeros(n_body), np.zeros(n_body), np.linspace(-height / 2, height / 2, n_body)], 1)
+    return tube_along(path, radius, n_around, cap_rings)
