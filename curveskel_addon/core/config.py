@@ -27,9 +27,9 @@ class Weights:
     smooth: float = 0.01
     #: containment: a barrier, orders above the other terms (a bone leaving the mesh by a
     #: hundredth of D along its whole length outweighs any fit it buys)
-    contain: float = 100.0
+    contain: float = 10_000.0
     #: the price of a joint: a chain joint stays only where it explains a bend
-    joint: float = 1e-4
+    joint: float = 1e-3
     #: one unit of *Branch Pruning*: the price of a branch (a tip)
     branch: float = 0.01
 
@@ -104,6 +104,9 @@ class ObjectiveConfig:
     #: its point: all of a round part's (its outline is about one thickness away), little of
     #: the body a limb's root cuts across
     section_reach: float = 2.0
+    #: a bone keeps this share of a spacing inside the surface (containment): grazing the
+    #: surface from inside, a curve is outside one step of the search later
+    contain_margin: float = 0.1
     #: points along every bone (ends included) where containment is measured
     bone_points: int = 9
     #: the uniform subset of samples hashes each sample's geodesic distance this many times

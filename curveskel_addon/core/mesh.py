@@ -16,6 +16,7 @@ from .geometry.face_tree import FaceTree
 from .geometry.inside import InsideTest
 from .geometry.mesh_graph import edge_table, faces_around
 from .geometry.rows import col_max, col_min, row_cross, row_norm
+from .geometry.cluster import cluster_vertices
 from .geometry.disc_sections import DiscSections, disc_sections
 from .geometry.sections import Sections, cross_sections
 from .geometry.meb import size_of
@@ -134,6 +135,16 @@ class Mesh:
                         np.array(cols[8], np.float64),
                         stack(cols[9], (3,)) if jacobian else None,
                         stack(cols[10], (3,)) if jacobian else None)
+
+    def coarsened(self, h: float) -> "Mesh":
+        """This mesh with its vertices clustered in cubes of side ``h``
+        (:func:`.geometry.cluster.cluster_vertices`), or itself where its edges are already
+        about that long: the cross-sections' centroids need no finer a surface than the
+        method's resolution."""
+        E, _ = self.edges
+        if not len(E) or float(np.mean(row_norm(self.V[E[:, 0]] - self.V[E[:, 1]]))) >= 0.5 * h:
+            return self
+        return Mesh(*cluster_vertices(self.V, self.F, h))
 
     @cached_property
     def _disc_cache(self) -> dict:

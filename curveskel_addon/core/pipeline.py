@@ -124,9 +124,10 @@ class SkeletonRun:
             idx = canonical_subset(fs, cfg.max_samples, p.seed)
             samples = samples.subset(idx, float(samples.weights.sum() / samples.weights[idx].sum()))
             sreg = sreg[idx]
+        coarse = self.mesh.coarsened(cfg.sample_length * p.spacing * self.mesh.D)
         self.objective = Objective.for_first_approximation(self.mesh, samples, sreg,
                                                            self.init.graph, weights_for(p),
-                                                           p.spacing)
+                                                           p.spacing, sections=coarse)
         t0 = time.perf_counter()
         g0 = self.init.graph
         g0 = g0.with_thickness(self.objective.measure_thickness(g0))

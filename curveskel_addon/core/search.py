@@ -216,11 +216,6 @@ def search_steps(objective, graph, log: SearchLog, *, max_joints=0, max_iteratio
     log.objective = objective
     ev = objective.evaluate(graph)
     yield graph, log.add("initialise", graph, ev)
-    g2, ev2, it = minimise(objective, graph, evaluation=ev, max_iterations=max(steps, 100),
-                           tolerance=cfg.final_tolerance)
-    if ev2.value < ev.value:
-        graph, ev = g2, ev2
-        yield graph, log.add("fit", graph, ev, iterations=int(it))
     for _ in range(cfg.rounds):                      # merges with the joints held
         kept = _merges(objective, graph, ev, 0)
         if kept is None:
@@ -248,7 +243,7 @@ def search_steps(objective, graph, log: SearchLog, *, max_joints=0, max_iteratio
             yield graph, log.add(kind, graph, ev)
         if not changed:
             break
-    g2, ev2, it = minimise(objective, graph, evaluation=ev, max_iterations=max(steps, 100),
+    g2, ev2, it = minimise(objective, graph, evaluation=ev, max_iterations=steps,
                            tolerance=cfg.final_tolerance)
     if ev2.value < ev.value:
         graph, ev = g2, ev2

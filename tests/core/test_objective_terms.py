@@ -73,16 +73,28 @@ def test_smooth_gradient(bumpy_capsule):
     _check_gradient(lambda Z, jac: T.smooth_term(Z, bones, mesh.D, jacobian=jac), Z)
 
 
-def test_contain_gradient(bumpy_capsule):
+@pytest.mark.parametrize("shift", [0.25, 0.35, 0.6])
+def test_contain_gradient(bumpy_capsule, shift):
+    # pushed sideways: near the surface (0.25), partly out (0.35), out beyond the tangent
+    # planes' reach (0.6, where the distance to the surface takes over)
     mesh, s, Z, bones, *_ = bumpy_capsule
     tree = cKDTree(s.points)
-    out = Z + np.array([0.35, 0, 0, 0])            # pushed sideways: parts of bones leave the mesh
+    out = Z + np.array([shift, 0, 0, 0])
     value = _check_gradient(lambda Z, jac: T.contain_term(Z, bones, mesh.inside, tree, s.points,
-                                                          s.normal, mesh.D, jacobian=jac), out)
+                                                          s.normal, mesh.D, np.full(3, 0.1),
+                                                          jacobian=jac), out)
     assert value > 0
-    inside = T.contain_term(Z * np.array([0.1, 0.1, 0.5, 1]), bones, mesh.inside, tree, s.points,
-                            s.normal, mesh.D, jacobian=False)[0]
-    assert not inside.any()
+
+
+def test_contain_is_zero_deep_inside_and_grows_with_the_margin(bumpy_capsule):
+    mesh, s, Z, bones, *_ = bumpy_capsule
+    tree = cKDTree(s.points)
+    axis = Z * np.array([0.1, 0.1, 0.5, 1])         # on the axis, 0.4 from the surface
+    value = lambda margin: (T.contain_term(axis, bones, mesh.inside, tree, s.points, s.normal,  # noqa: E731
+                                           mesh.D, np.full(3, margin), jacobian=False)[0] ** 2).sum()
+    # the bones' points lie 0.35-0.42 under the jittered surface (the ends nearer the caps)
+    assert value(0.3) == 0
+    assert 0 < value(0.45) < value(0.6)
 
 
 def test_smooth_values_by_hand():

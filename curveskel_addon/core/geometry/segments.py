@@ -21,7 +21,7 @@ from ..config import CONFIG
 from ..errors import CurveSkelError
 from .rows import col_max, col_min, mul_rows, take_rows
 
-__all__ = ["closest_on_bones", "closest_bone"]
+__all__ = ["closest_on_bones", "closest_bone", "nearest_on_silhouette"]
 
 _NUM = CONFIG.numerics
 
@@ -260,4 +260,60 @@ def _all_bones(P, X, bones):
         indptr = np.r_[0, np.cumsum(np.concatenate(counts))]
         bone[rows] = closest_on_bones(P[rows], X, bones, candidates=(indptr, np.concatenate(cands)))[0]
     t, d2 = _on_bones(P, X, bones, bone)
+    return bone, t, d2
+
+
+def nearest_on_silhouette(points, joints, bones):
+    """For each point, the bone whose round cone's surface is nearest along the bone's own
+    normal: the bone minimising ``|p - s_b| - r_b(s_b)``, ``s_b`` the point's closest point on
+    bone ``b`` and ``r_b`` the radius there (linear between the joints' radii).
+
+    The least of these is the signed distance from the point to the silhouette (the union of
+    the bones' round cones, measured to each cone along its axis' normal): a point inside a
+    fat neighbour's cone maps to it with a negative value, where the closest bone's axis would
+    hide the overlap.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+    joints : (J, 4) float
+    bones : (B, 2) int
+
+    Returns
+    -------
+    bone : (n,) int
+    t : (n,) float
+        sigma = t x_i + (1 - t) x_j on bone (i, j), as :func:`closest_on_bones`.
+    dist2 : (n,) float
+        Squared distance from the point to sigma.
+
+    Examples
+    --------
+    >>> J = np.array([[0., 0, 0, 0.1], [0, 0, 2, 0.1], [0, 0, 0, 1.5], [2, 0, 0, 1.5]])
+    >>> b, t, d2 = nearest_on_silhouette(np.array([[0.5, 0, 1.0]]), J, np.array([[0, 1], [2, 3]]))
+    >>> int(b[0])                  # 0.5 from the thin bone's axis, 1.0 inside the fat one
+    1
+    """
+    P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    Z = np.asarray(joints, dtype=np.float64)
+    bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
+    n, nb = len(P), len(bones)
+    if n == 0:
+        return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
+    if nb == 0:
+        raise CurveSkelError("nearest_on_silhouette: the skeleton has no bones")
+    xi, xj = Z[bones[:, 0], :3], Z[bones[:, 1], :3]
+    ri, rj = Z[bones[:, 0], 3], Z[bones[:, 1], 3]
+    d = xi - xj
+    dd = np.einsum("ij,ij->i", d, d)
+    inv = np.divide(1.0, dd, out=np.zeros_like(dd), where=dd > 0)
+    bone = np.zeros(n, np.int64)
+    step = max(1, _NUM.block // nb)
+    for s in range(0, n, step):
+        w = P[s:s + step, None, :] - xj[None]                  # (k, B, 3)
+        t = np.clip(np.einsum("kbc,bc->kb", w, d) * inv, 0.0, 1.0)
+        diff = w - t[:, :, None] * d[None]
+        value = np.sqrt(np.einsum("kbc,kbc->kb", diff, diff)) - (t * ri + (1.0 - t) * rj)
+        bone[s:s + step] = np.argmin(value, axis=1)
+    t, d2 = _on_bones(P, Z[:, :3], bones, bone)
     return bone, t, d2

@@ -61,15 +61,22 @@ def minimise(objective, graph, *, max_iterations, tolerance, fixed=None,
             except RuntimeError:                     # singular: more damping
                 mu *= 10.0
                 continue
-            z = np.array(graph.joints).ravel()
-            z[free] += step
-            Z = z.reshape(-1, 4)
-            Z[:, 3] = np.abs(Z[:, 3])
-            trial = graph.with_joints(Z)
+            trial = _moved(graph, free, step)
             ev_t = objective.evaluate(trial)
             if ev_t.value < ev.value:
                 kept = True
                 mu = max(mu / 3.0, 1e-12)
+                # sigma held, the model is stiffer than J along a curve (a joint slides and the
+                # samples' sigma slide with it): once the model is trusted (little damping),
+                # while a longer step along the same direction lowers J further, take it
+                scale = 2.0
+                while mu < 1e-4:
+                    longer = _moved(graph, free, scale * step)
+                    ev_l = objective.evaluate(longer)
+                    if ev_l.value >= ev_t.value:
+                        break
+                    trial, ev_t = longer, ev_l
+                    scale *= 2.0
                 break
             mu *= 4.0
         if not kept:
@@ -79,3 +86,13 @@ def minimise(objective, graph, *, max_iterations, tolerance, fixed=None,
         if drop < tolerance * ev.value:
             break
     return graph, ev, it
+
+
+def _moved(graph, free, step):
+    """``graph`` with ``step`` added to its free variables (radii kept positive: r enters J
+    squared, as in the paper)."""
+    z = np.array(graph.joints).ravel()
+    z[free] += step
+    Z = z.reshape(-1, 4)
+    Z[:, 3] = np.abs(Z[:, 3])
+    return graph.with_joints(Z)

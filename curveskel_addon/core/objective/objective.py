@@ -31,7 +31,7 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from ..config import CONFIG, Weights
-from ..geometry.segments import closest_on_bones
+from ..geometry.segments import closest_on_bones, nearest_on_silhouette
 from ..graph import candidates_from_pairs
 from . import terms as T
 
@@ -70,18 +70,28 @@ class Objective:
     paper : (region (s,) int, graph) or None
         The Reeb region of every sample and the first approximation, for the paper's E with
         its own sigma (reported, not minimised).
+    sections : Mesh, optional
+        The mesh the centring's cross-sections are cut from (a coarser copy at the samples'
+        resolution, :meth:`..mesh.Mesh.coarsened`; default ``mesh``).
+    resolution : float, optional
+        The finest length the method resolves (the first approximation's spacing times D; by
+        default the least of ``scale``): containment keeps bones a share of it inside.
     """
 
-    def __init__(self, mesh, samples, weights: Weights, scale, paper=None):
+    def __init__(self, mesh, samples, weights: Weights, scale, paper=None, sections=None,
+                 resolution=None):
         self.mesh, self.samples, self.weights = mesh, samples, weights
+        self.section_mesh = mesh if sections is None else sections
         self.scale = np.asarray(scale, np.float64)
         self.area = float(samples.weights.sum())
         self.D = mesh.D
         self.tree = cKDTree(samples.points)
         self.region = None if paper is None else np.asarray(paper, np.int64)
+        self.resolution = float(np.min(self.scale, initial=mesh.D) if resolution is None
+                                else resolution)
 
     @classmethod
-    def for_first_approximation(cls, mesh, samples, region, graph, weights, spacing):
+    def for_first_approximation(cls, mesh, samples, region, graph, weights, spacing, sections=None):
         """J for a mesh whose first approximation is ``graph``: each sample's thickness is its
         distance from the first approximation, on the bones of its Reeb region (at least
         ``CONFIG.objective.thickness_floor`` spacings)."""
@@ -89,11 +99,13 @@ class Objective:
         cand = candidates_from_pairs(graph.pairs, region, n_reg)
         _, _, d2 = closest_on_bones(samples.points, graph.joints, graph.bones, cand)
         floor = CONFIG.objective.thickness_floor * spacing * mesh.D
-        return cls(mesh, samples, weights, np.maximum(np.sqrt(d2), floor), paper=region)
+        return cls(mesh, samples, weights, np.maximum(np.sqrt(d2), floor), paper=region,
+                   sections=sections, resolution=spacing * mesh.D)
 
     def sigma(self, graph):
-        """(bone, t) of every sample: its nearest point on any bone."""
-        bone, t, _ = closest_on_bones(self.samples.points, graph.joints, graph.bones)
+        """(bone, t) of every sample: its point on the bone whose cone's surface is nearest
+        (:func:`..geometry.segments.nearest_on_silhouette`)."""
+        bone, t, _ = nearest_on_silhouette(self.samples.points, graph.joints, graph.bones)
         return bone, t
 
     def paper_sigma(self, graph):
@@ -109,6 +121,11 @@ class Objective:
         if graph.thick is not None:
             return np.asarray(graph.thick)
         return self.measure_thickness(graph)
+
+    def margin(self, n_bones) -> np.ndarray:
+        """How deep inside each bone must keep (containment): a share of the resolution (of
+        a part's thickness, a flap's would be out of reach)."""
+        return np.full(n_bones, CONFIG.objective.contain_margin * self.resolution)
 
     def measure_thickness(self, graph, bone=None) -> np.ndarray:
         """(B,) the area-weighted mean thickness of the samples nearest each bone (``bone``:
@@ -126,13 +143,14 @@ class Objective:
         out = {"fit": (1.0, T.fit_term(Z, s, bones, bone, t, self.area, self.scale,
                                        jacobian=jacobian))}
         if w.centre:
-            out["centre"] = (w.centre, T.centre_term(Z, bones, self.mesh, D, self._thick,
+            out["centre"] = (w.centre, T.centre_term(Z, bones, self.section_mesh, D, self._thick,
                                                      jacobian=jacobian))
         if w.smooth:
             out["smooth"] = (w.smooth, T.smooth_term(Z, bones, D, jacobian=jacobian))
         if w.contain:
             out["contain"] = (w.contain, T.contain_term(Z, bones, self.mesh.inside, self.tree,
-                                                        s.points, s.normal, D, jacobian=jacobian))
+                                                        s.points, s.normal, D, self.margin(len(bones)),
+                                                        jacobian=jacobian))
         return out
 
     def evaluate(self, graph, sigma=None) -> Evaluation:

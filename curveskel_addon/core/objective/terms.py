@@ -32,9 +32,10 @@ smooth
     joint's two bones (0 straight on, 1 at a right angle, whatever the size), ``m_k`` the mean
     of its two bone lengths (the radius's second difference per length).
 contain
-    How far the bones leave the mesh: at points along every bone that lie outside (the exact
-    inside test), their height above the tangent plane of the nearest surface sample:
-    ``sum_q (l_q / D) max(0, h_q)^2 / D^2``.
+    How far the bones come closer to the surface than a margin, or leave the mesh: at points
+    along every bone, their signed height ``s_q`` over the surface (:func:`surface_heights`),
+    ``sum_q (l_q / D) max(0, s_q + margin_b)^2 / D^2``, ``margin_b`` a share of the first
+    approximation's spacing (``CONFIG.objective.contain_margin``).
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ from ..config import CONFIG
 from ..geometry.rows import row_norm
 
 __all__ = ["fit_term", "fit_values", "fit_residuals", "paper_energy", "centre_term", "bone_centres", "smooth_term", "smooth_triplets",
-           "contain_term", "chain_neighbours", "BONE_POINTS"]
+           "contain_term", "bone_contain", "surface_heights", "chain_neighbours", "BONE_POINTS"]
 
 #: Where along every bone (ends included) containment is measured.
 BONE_POINTS = np.linspace(0.0, 1.0, CONFIG.objective.bone_points)
@@ -272,44 +273,67 @@ def smooth_triplets(Z, k, a, b, D, *, jacobian=True):
     return res, _jac(rows, cols, vals, 4 * m, J)
 
 
-def contain_term(Z, bones, inside, tree, points, normals, D, *, jacobian=True):
-    """Residuals ``sqrt(l_b / (m D)) max(0, h_q) / D`` at the ``m`` points ``BONE_POINTS``
-    of every bone ``b`` (length ``l_b``) that lie outside the mesh (``inside``: its exact
-    inside test), ``h_q`` the height of point ``q`` above the tangent plane of its nearest
-    surface sample (``tree``: a KD-tree of ``points``, with their ``normals``); and their
-    Jacobian (the nearest sample held). Zero for a point inside; at the surface, where it
-    leaves, ``h`` is zero too."""
-    J = len(Z)
+def surface_heights(Q, inside, tree, points, normals):
+    """Signed height of points ``Q`` over the surface, and its gradient: inside the mesh (its
+    exact test ``inside``) the height above the tangent plane of the nearest surface sample
+    (negative), outside the larger of that and the distance to the sample (a point outside a
+    concave part can lie below a tangent plane). Continuous where a point crosses the surface:
+    both are zero there."""
+    _, nn = tree.query(Q)
+    p, n = points[nn], normals[nn]
+    w = Q - p
+    h = np.einsum("ij,ij->i", w, n)
+    dist = row_norm(w)
+    out = ~inside(Q)
+    far = out & (dist > h)
+    s = np.where(far, dist, h)
+    g = np.where(far[:, None], w / np.maximum(dist, 1e-300)[:, None], n)
+    return s, g
+
+
+def contain_term(Z, bones, inside, tree, points, normals, D, margin, *, jacobian=True):
+    """:func:`bone_contain` of every bone of the graph (``margin[b]`` per bone)."""
+    X = Z[:, :3]
+    return bone_contain(X[bones[:, 0]], X[bones[:, 1]], bones, inside, tree, points, normals, D,
+                        margin, len(Z), jacobian=jacobian)
+
+
+def bone_contain(A, B, bones, inside, tree, points, normals, D, margin, n_joints, *,
+                 jacobian=True):
+    """Residuals ``sqrt(l_b / (m D)) max(0, s_q + margin_b) / D`` at the ``m`` points
+    ``BONE_POINTS`` of every segment ``A[b] -> B[b]`` (length ``l_b``; rows of ``bones`` give
+    its joints, for the Jacobian), ``s_q`` the point's signed height over the surface
+    (:func:`surface_heights`), ``margin_b`` how deep inside a bone must keep (a curve grazing the
+    surface from inside is outside a step later); and
+    their Jacobian (the nearest sample held). ``jacobian=None`` returns the value per segment
+    (for the moves' estimates)."""
     u = BONE_POINTS
     m = len(u)
-    X = Z[:, :3]
-    i, j = bones[:, 0], bones[:, 1]
-    vb = X[i] - X[j]
+    nb = len(A)
+    vb = A - B
     lb = row_norm(vb)
-    Q = (u[None, :, None] * X[i][:, None, :] + (1 - u)[None, :, None] * X[j][:, None, :]).reshape(-1, 3)
-    res = np.zeros(len(Q))
-    out = np.flatnonzero(~inside(Q))
-    if len(out):
-        _, nn = tree.query(Q[out])
-        nq = normals[nn]
-        h = np.maximum(np.einsum("ij,ij->i", Q[out] - points[nn], nq), 0.0)
-        res[out] = np.sqrt(lb[out // m] / (m * D)) * h / D
+    Q = (u[None, :, None] * A[:, None, :] + (1 - u)[None, :, None] * B[:, None, :]).reshape(-1, 3)
+    s, g = surface_heights(Q, inside, tree, points, normals)
+    bq_all = np.repeat(np.arange(nb), m)
+    depth = np.maximum(s + np.repeat(np.broadcast_to(np.asarray(margin, np.float64), (nb,)), m), 0.0)
+    sw_all = np.sqrt(lb[bq_all] / (m * D))
+    res = sw_all * depth / D
+    if jacobian is None:
+        return np.bincount(bq_all, res * res, nb)
     if not jacobian:
         return res, None
-    act = out[res[out] > 0]
-    hp = res[act] / np.sqrt(lb[act // m] / (m * D)) * D if len(act) else np.zeros(0)
-    nqa = nq[res[out] > 0] if len(out) else np.zeros((0, 3))
-    uq = u[act % m]
-    bq = act // m
+    act = np.flatnonzero(depth > 0)
+    bq, uq = bq_all[act], u[act % m]
     lq = lb[bq]
-    sw = np.sqrt(lq / (m * D))
+    sw = sw_all[act]
     # d sqrt(l/(mD)) / dx_i = (1 / (2 sqrt(l m D))) (x_i - x_j)/l
     ub = vb[bq] / np.maximum(lq, 1e-300)[:, None]
-    g = 1.0 / (2.0 * np.sqrt(lq * m * D))
-    hd = hp / D
-    di = sw[:, None] * uq[:, None] * nqa / D + (hd * g)[:, None] * ub
-    dj = sw[:, None] * (1 - uq)[:, None] * nqa / D - (hd * g)[:, None] * ub
+    gl = 1.0 / (2.0 * np.sqrt(np.maximum(lq, 1e-300) * m * D))
+    hd = depth[act] / D
+    di = sw[:, None] * uq[:, None] * g[act] / D + (hd * gl)[:, None] * ub
+    dj = sw[:, None] * (1 - uq)[:, None] * g[act] / D - (hd * gl)[:, None] * ub
     rows = np.repeat(act, 3)
     c3 = np.arange(3)
-    return res, _jac([rows, rows], [(4 * i[bq][:, None] + c3).ravel(), (4 * j[bq][:, None] + c3).ravel()],
-                     [di.ravel(), dj.ravel()], len(res), J)
+    i, j = bones[bq, 0], bones[bq, 1]
+    return res, _jac([rows, rows], [(4 * i[:, None] + c3).ravel(), (4 * j[:, None] + c3).ravel()],
+                     [di.ravel(), dj.ravel()], len(res), n_joints)
