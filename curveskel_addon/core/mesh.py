@@ -144,7 +144,7 @@ class Mesh:
         E, _ = self.edges
         if not len(E) or float(np.mean(row_norm(self.V[E[:, 0]] - self.V[E[:, 1]]))) >= 0.5 * h:
             return self
-        return Mesh(*cluster_vertices(self.V, self.F, h))
+        return Mesh(*cluster_vertices(self.V, self.F, h), union=self.union)
 
     @cached_property
     def _disc_cache(self) -> dict:
