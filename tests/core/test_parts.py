@@ -69,6 +69,7 @@ def test_six_part_figure_is_one_tree(six_part):
     assert pieces == 1 and acyclic
     meta = sk.meta["parts"]
     assert meta["count"] == 6 and meta["trees"] == 1 and meta["figures"] == [0] * 6
+    assert meta["loops"] == 0
     assert meta["contacts"] == {"overlap": 5, "gap": 0}       # every part overlaps the torso
     assert meta["largest_part"] == 0                          # the torso
     assert _inside_capsule(sk.joints[meta["root"], :3], meshes.SIX_PART["torso"])
@@ -363,6 +364,22 @@ def test_a_rod_through_a_ball_touches_it_twice():
     # each seam where the rod leaves the ball: |x| = sqrt(0.5^2 - 0.1^2) = 0.49, give or take
     # the facets
     assert np.allclose(np.abs(xs), 0.49, atol=0.03) and xs[0] < 0 < xs[1]
+
+
+def test_a_handle_pushed_in_at_both_ends_closes_a_loop():
+    # a post and a U-shaped handle whose two ends go into it: the solid they make has a hole
+    post = _capsule_mesh((0, 0, -1), (0, 0, 1), 0.3)
+    s = np.linspace(0.0, np.pi, 41)
+    path = np.stack([0.15 + 0.6 * np.sin(s), np.zeros_like(s), 0.6 * np.cos(s)], 1)
+    handle = meshes.tube_along(path, 0.1, 16, 5)
+    V, F = _join(post, handle)
+    run = SkeletonRun(V, F)
+    assert len(run.parts.contacts) == 2 and run.parts.loops == 1
+    sk = run.result()
+    J = sk.n_joints
+    G = coo_matrix((np.ones(sk.n_bones), (sk.bones[:, 0], sk.bones[:, 1])), shape=(J, J))
+    assert connected_components(G, directed=False)[0] == 1
+    assert sk.n_bones - J + 1 == 1 and sk.meta["parts"]["loops"] == 1     # one cycle
 
 
 def test_the_union_inside_test_fills_the_overlap():

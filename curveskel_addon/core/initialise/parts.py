@@ -88,6 +88,9 @@ class Joined:
         The visible surface area of every part.
     part_centre : (k, 3) float
         The area centroid of every part's visible surface.
+    loops : int
+        The loops the joins close (seams beyond the ones that join the parts: a handle pushed
+        into a mug at both ends): cycles of the union that no part has alone.
     """
 
     init: Initial
@@ -98,6 +101,7 @@ class Joined:
     contacts: list = field(default_factory=list)
     part_area: np.ndarray | None = None
     part_centre: np.ndarray | None = None
+    loops: int = 0
 
 
 class _Curves:
@@ -331,9 +335,10 @@ def join_parts(figures: Figures, samples, init: Initial) -> Joined:
     if any(c.overlap for c in figures.joins):
         curves.drop_covered(figures.inside)
     groups = PartGroups(n_parts)
+    loops = 0
     for c in figures.joins:
-        if c.overlap:
-            groups.join(*c.parts)
+        if c.overlap:       # a seam between parts joined already closes a loop of the solid
+            loops += not groups.join(*c.parts)
     lab = groups.labels()
     for grp in range(int(lab.max()) + 1):
         members = np.flatnonzero(lab == grp)
@@ -353,7 +358,7 @@ def join_parts(figures: Figures, samples, init: Initial) -> Joined:
     joined_init = replace(init, graph=graph, bone_part=bone_part,
                           vertex_bone=np.zeros(n_vertices, np.int64), vertex_t=np.zeros(n_vertices))
     return Joined(joined_init, visible, region_part, curves.links, groups.labels(),
-                  figures.contacts, figures.part_area, figures.part_centre)
+                  figures.contacts, figures.part_area, figures.part_centre, loops)
 
 
 def parts_meta(joined: Joined, graph) -> dict:
@@ -370,7 +375,7 @@ def parts_meta(joined: Joined, graph) -> dict:
     dict
         ``count`` (parts), ``trees`` (connected pieces of the skeleton: one per figure),
         ``figures`` (the figure of every part: parts joined by contacts or rigid links share
-        one), ``contacts`` (overlaps and gaps found), ``hidden_samples`` (samples inside another
+        one), ``loops`` (cycles the joins close: :attr:`Joined.loops`), ``contacts`` (overlaps and gaps found), ``hidden_samples`` (samples inside another
         part, left out of the fit), ``largest_part``, ``root`` (the joint of the largest part
         nearest the centroid of its visible surface: where a rig roots the figure),
         ``part_bones`` (per part, the bones explaining its surface alone: 0 for a small part
@@ -407,7 +412,7 @@ def parts_meta(joined: Joined, graph) -> dict:
     centre = joined.part_centre[largest]
     root = int(js[np.argmin(row_norm(graph.joints[js, :3] - centre))]) if J else -1
     return {"count": int(n_parts), "trees": int(trees),
-            "figures": [int(x) for x in joined.group],
+            "figures": [int(x) for x in joined.group], "loops": int(joined.loops),
             "contacts": {"overlap": int(sum(c.overlap for c in joined.contacts)),
                          "gap": int(sum(not c.overlap for c in joined.contacts))},
             "hidden_samples": int(np.count_nonzero(~joined.visible)),
