@@ -476,3 +476,116 @@ def uniform_capsule(radius: float = 0.4, height: float = 2.0, edge: float | None
     cap_rings = int(np.ceil(np.pi * radius / 2 / edge))
     path = np.stack([np.zeros(n_body), np.zeros(n_body), np.linspace(-height / 2, height / 2, n_body)], 1)
     return tube_along(path, radius, n_around, cap_rings)
+
+
+#: The 15-part insect (z up, head towards -y, mirror plane x = 0): head and body (ellipsoids:
+#: centre, semi-axes), the two antennae as one tube bent inside the head (a path and its
+#: radius: :func:`_antennae_path`), and six legs of two capsules each (femur from inside the body to the knee, tibia
+#: from the knee to the ground; capsules (axis start, axis end, radius) overlap at the knee).
+INSECT = {
+    "head": ((0.0, -0.58, 0.55), (0.15, 0.14, 0.13)),
+    "body": ((0.0, 0.10, 0.50), (0.22, 0.60, 0.18)),
+    "antennae": ("path", 0.018),
+}
+for _k, (_y, _dy) in enumerate(((-0.2, -0.15), (0.0, 0.0), (0.2, 0.15))):
+    for _side, _sx in (("L", 1.0), ("R", -1.0)):
+        INSECT[f"femur{_k}.{_side}"] = ((0.10 * _sx, _y, 0.50), (0.45 * _sx, _y + _dy, 0.66), 0.035)
+        INSECT[f"tibia{_k}.{_side}"] = ((0.45 * _sx, _y + _dy, 0.66), (0.62 * _sx, _y + 2 * _dy, 0.02), 0.03)
+__all__ += ["insect", "INSECT", "sphere_grid"]
+
+
+def _antennae_path(n: int = 12):
+    """The antennae's axis: two straight feelers out and up from the head, joined by a bend at
+    the head's centre (inside the head: only the feelers show)."""
+    centre = np.array([0.0, -0.58, 0.55])
+    tips = np.array([[0.30, -0.90, 0.85], [-0.30, -0.90, 0.85]])
+    u = (tips - centre) / np.linalg.norm(tips - centre, axis=1, keepdims=True)
+    p1, p2 = centre + 0.06 * u[0], centre + 0.06 * u[1]
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    t = np.linspace(0.0, 1.0, 9)[1:-1, None]
+    bend = (1 - t) ** 2 * p1 + 2 * t * (1 - t) * centre + t * t * p2      # a smooth turn
+    return np.concatenate([tips[0] + s * (p1 - tips[0]), bend, p2 + s * (tips[1] - p2)])
+
+
+def insect(parts=INSECT, n_around: int = 12, subdivisions: int = 2):
+    """An insect of 15 separate, overlapping closed parts (see ``INSECT``): body segments
+    (head, body), the antennae (one tube through the head, its two ends outside) and six legs
+    of two parts each. About 4.7k faces.
+
+    Returns (V, F, part): ``part`` (n,) int, the index into ``list(parts)`` of each vertex's part.
+    """
+    import trimesh
+
+    Vs, Fs, ids = [], [], []
+    off = 0
+    for k, (name, spec) in enumerate(parts.items()):
+        if spec[0] == "path":
+            V, F = tube_along(_antennae_path(), spec[1], n_around, 3)
+        elif len(spec) == 3:
+            a, b, r = np.asarray(spec[0], float), np.asarray(spec[1], float), float(spec[2])
+            n_path = max(int(np.ceil(np.linalg.norm(b - a) / (1.5 * r))), 2) + 1
+            V, F = tube_along(a + np.linspace(0, 1, n_path)[:, None] * (b - a), r, n_around, 3)
+        else:
+            sphere = trimesh.creation.icosphere(subdivisions=subdivisions)
+            V = np.asarray(sphere.vertices, float) * np.asarray(spec[1], float) + np.asarray(spec[0], float)
+            F = np.asarray(sphere.faces, np.int64)
+            if _signed_volume(V, F) < 0:
+                F = F[:, ::-1].copy()
+        Vs.append(V)
+        Fs.append(F + off)
+        ids.append(np.full(len(V), k))
+        off += len(V)
+    return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(ids)
+
+
+def sphere_grid(rows: int = 10, cols: int = 20, radius: float = 0.5, pitch: float = 1.6,
+                subdivisions: int = 1):
+    """``rows * cols`` equal closed spheres on a grid in the xy-plane, ``pitch`` apart (a gap of
+    ``pitch - 2 radius`` between neighbours), each an icosphere: one mesh of that many parts.
+
+    Returns (V, F, part)."""
+    import trimesh
+
+    sphere = trimesh.creation.icosphere(subdivisions=subdivisions)
+    S = np.asarray(sphere.vertices, float) * radius
+    T = np.asarray(sphere.faces, np.int64)
+    if _signed_volume(S, T) < 0:
+        T = T[:, ::-1].copy()
+    i, j = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+    centres = np.stack([j.ravel() * pitch, i.ravel() * pitch, np.zeros(rows * cols)], 1)
+    n = len(centres)
+    V = (S[None] + centres[:, None]).reshape(-1, 3)
+    F = (T[None] + (np.arange(n) * len(S))[:, None, None]).reshape(-1, 3)
+    return V, F, np.repeat(np.arange(n), len(S))
+
+
+#: Small free parts on the six-part figure (sphere centre, radius): two eyes just off the
+#: head's front and a button just off the torso's front, each a gap of more than half its own
+#: radius away (not touching: they float free).
+DETAILS = {
+    "eye.L": ((0.08, -0.25, 2.10), 0.03),
+    "eye.R": ((-0.08, -0.25, 2.10), 0.03),
+    "button": ((0.0, -0.39, 1.20), 0.04),
+}
+__all__ += ["figure_with_details", "DETAILS"]
+
+
+def figure_with_details(details=DETAILS, subdivisions: int = 2):
+    """The six-part figure (:func:`six_part_figure`) with small free parts (``DETAILS``): nine
+    parts. Returns (V, F, part), ``part`` indexing ``list(SIX_PART) + list(details)``."""
+    import trimesh
+
+    V, F, part = six_part_figure()
+    sphere = trimesh.creation.icosphere(subdivisions=subdivisions)
+    S, T = np.asarray(sphere.vertices, float), np.asarray(sphere.faces, np.int64)
+    if _signed_volume(S, T) < 0:
+        T = T[:, ::-1].copy()
+    Vs, Fs, ids = [V], [F], [part]
+    off, k = len(V), len(SIX_PART)
+    for centre, radius in details.values():
+        Vs.append(S * radius + np.asarray(centre, float))
+        Fs.append(T + off)
+        ids.append(np.full(len(S), k))
+        off += len(S)
+        k += 1
+    return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(ids)

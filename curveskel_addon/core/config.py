@@ -81,6 +81,13 @@ class InitialConfig:
     #: a bone the first approximation leaves with no length gets this share of the size
     #: (every bone has a direction)
     nudge: float = 1e-6
+    #: separate parts whose surfaces come within this share of the thinner one's radius are
+    #: joined where they meet (:mod:`.initialise.parts`): a gap small against their radii is a
+    #: part modelled just short of its body, not a second figure
+    contact_gap: float = 0.5
+    #: a free part hangs from a larger part when it lies within this many radii of that part's
+    #: curve (an eye on a head, a button on a coat: a detail of the larger part's section)
+    float_reach: float = 2.0
 
 
 @dataclass(frozen=True)

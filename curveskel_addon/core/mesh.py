@@ -32,10 +32,14 @@ class Mesh:
     ----------
     V : (n, 3) float, read-only
     F : (m, 3) int, read-only
+    union : bool
+        The solid is the union of the mesh's parts (overlapping parts of one figure): the
+        inside test counts the winding number, not the parity (:class:`.geometry.inside.InsideTest`).
     """
 
     V: np.ndarray
     F: np.ndarray
+    union: bool = False
 
     def __post_init__(self):
         V = np.array(self.V, dtype=np.float64)
@@ -77,8 +81,8 @@ class Mesh:
 
     @cached_property
     def inside(self) -> InsideTest:
-        """Exact inside test (ray parity)."""
-        return InsideTest(self.V, self.F)
+        """Exact inside test (ray parity; the winding number for a union of parts)."""
+        return InsideTest(self.V, self.F, union=self.union)
 
     @cached_property
     def face_tree(self) -> FaceTree:
@@ -140,7 +144,7 @@ class Mesh:
         E, _ = self.edges
         if not len(E) or float(np.mean(row_norm(self.V[E[:, 0]] - self.V[E[:, 1]]))) >= 0.5 * h:
             return self
-        return Mesh(*cluster_vertices(self.V, self.F, h))
+        return Mesh(*cluster_vertices(self.V, self.F, h), union=self.union)
 
     @cached_property
     def _disc_cache(self) -> dict:
