@@ -6,15 +6,28 @@ included), never from the skeleton it was generated from. Any armature can be bo
 
 Binding is the one change curveskel makes to the user's mesh. What it adds is tracked on the mesh
 object (``curveskel_groups``: the vertex groups it made, ``curveskel_modifier``: its modifier, the
-pointer property ``curveskel_armature_object``: the armature), so a re-bind replaces exactly those and
-leaves the user's other groups and modifiers alone. Groups of bones that no longer exist are
-removed; groups Blender renamed with a bone are taken over.
+pointer property ``curveskel_armature_object``: the armature, ``curveskel_parented``: that the bind
+set the mesh's parent), so a re-bind replaces exactly those and leaves the user's other groups and
+modifiers alone. Groups of bones that no longer exist are removed; groups Blender renamed with a
+bone are taken over.
 
-Weights ("SURFACE", the default) come from ``core.skin_weights.bone_weights`` (closest bone
+The mesh is parented to the armature as Blender's own *Parent > Armature Deform* (Ctrl+P) does:
+parent type OBJECT, the parent inverse matrix set to the armature's inverse world matrix, so the
+mesh keeps its world transform and its own location, rotation and scale (a mesh that had another
+parent gets that parent's transform folded into its own, as *Keep Transform* does). It then moves
+with the armature object, and the Armature modifier deforms it by the bones (relative to the
+armature object, so the two never add up). Parent type ARMATURE is not used: Blender would apply
+it as a second, hidden armature deform on top of the modifier. A mesh already parented to the
+armature (type OBJECT) is left as it is, whatever its inverse matrix. glTF and FBX exporters want
+this hierarchy (Blender's glTF exporter otherwise warns "Armature must be the parent of skinned
+mesh" and guesses the armature by name). :func:`unbind_mesh` clears the parent the bind set,
+keeping the world transform.
+
+Weights ("SURFACE", the default) come from ``rig.skin_weights.bone_weights`` (closest bone
 restricted to its connected patch of the surface, blended at joints, smoothed along the surface)
 and are written through a bmesh deform layer (no per-vertex operator call); or from Blender's heat
-weights ("HEAT", ``parent_set(type='ARMATURE_AUTO')``, slow on large meshes). The mesh is never
-re-parented: the Armature modifier alone binds it.
+weights ("HEAT", ``parent_set(type='ARMATURE_AUTO')``, slow on large meshes; its parenting is
+replaced by the one above).
 """
 
 from __future__ import annotations
@@ -24,18 +37,23 @@ import time
 import bmesh
 import bpy
 import numpy as np
+from mathutils import Matrix
 
+from .armature import build_armature
 from .core.errors import CurveSkelError
-from .core.skin_weights import bone_weights
+from .core.skeleton import Skeleton
+from .rig.skin_weights import bone_weights
 
-__all__ = ["bind_mesh", "unbind_mesh", "write_weights", "armature_bones", "METHODS", "GROUPS_KEY",
-           "MODIFIER_KEY", "MODIFIER_NAME", "HEAT_SLOW_VERTICES", "POINTER"]
+__all__ = ["bind_mesh", "unbind_mesh", "parent_to_armature", "write_weights", "armature_bones",
+           "METHODS", "GROUPS_KEY", "MODIFIER_KEY", "MODIFIER_NAME", "PARENTED_KEY",
+           "HEAT_SLOW_VERTICES", "POINTER"]
 
 METHODS = ("SURFACE", "HEAT")
 GROUPS_KEY = "curveskel_groups"
 MODIFIER_KEY = "curveskel_modifier"
 ARMATURE_KEY = "curveskel_armature"      # legacy string property (name); now a pointer property
 POINTER = "curveskel_armature_object"    # Object.curveskel_armature_object (registration.py)
+PARENTED_KEY = "curveskel_parented"     # the bind set the mesh's parent (unbind clears it)
 MODIFIER_NAME = "CurveSkel Armature"
 #: Above this many vertices heat weights take seconds to minutes (about 15 s at 50k).
 HEAT_SLOW_VERTICES = 10_000
@@ -103,10 +121,19 @@ def _bound_armature(mesh_obj):
     return mod.object if mod is not None and mod.type == 'ARMATURE' else None
 
 
-def unbind_mesh(mesh_obj, keep=()) -> int:
-    """Remove the vertex groups and the modifier a previous bind made; return the modifier's index
-    in the stack (0 when there was none). The user's own groups and modifiers are not touched;
-    groups named in ``keep`` are left for the caller to replace."""
+def unbind_mesh(mesh_obj, keep=(), *, unparent: bool = True) -> int:
+    """Remove the vertex groups and the modifier a previous bind made, and (``unparent``) clear
+    the parent it set, keeping the mesh's world transform; return the modifier's index in the
+    stack (0 when there was none). The user's own groups and modifiers are not touched, nor a
+    parent the user set; groups named in ``keep`` are left for the caller to replace. A parent the
+    mesh had before its first bind is not restored (as Blender's *Clear Parent and Keep
+    Transform*)."""
+    bound = _bound_armature(mesh_obj)
+    if unparent and mesh_obj.get(PARENTED_KEY) and bound is not None and mesh_obj.parent == bound:
+        mw = mesh_obj.matrix_world.copy()
+        mesh_obj.parent = None
+        mesh_obj.matrix_parent_inverse = Matrix.Identity(4)
+        mesh_obj.matrix_world = mw
     index = 0
     mod_name = mesh_obj.get(MODIFIER_KEY)
     if mod_name:
@@ -117,7 +144,7 @@ def unbind_mesh(mesh_obj, keep=()) -> int:
     groups = mesh_obj.vertex_groups
     for g in set(mesh_obj.get(GROUPS_KEY, [])).difference(keep).intersection(groups.keys()):
         groups.remove(groups[g])
-    for key in (GROUPS_KEY, MODIFIER_KEY, ARMATURE_KEY):
+    for key in (GROUPS_KEY, MODIFIER_KEY, ARMATURE_KEY) + ((PARENTED_KEY,) if unparent else ()):
         if key in mesh_obj.keys():
             del mesh_obj[key]
     if hasattr(mesh_obj, POINTER):
@@ -200,7 +227,8 @@ def write_weights(mesh_obj, group_names, index, weight) -> None:
 
 def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, smooth: float = 0.5,
               junction_blend: float = 0.0, method: str = "SURFACE") -> dict:
-    """Skin ``mesh_obj`` to the armature ``arm_obj`` as it is now.
+    """Skin ``mesh_obj`` to the armature ``arm_obj`` as it is now, and parent it to the armature
+    (keeping its world transform; see the module's notes).
 
     Parameters
     ----------
@@ -234,7 +262,8 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, smooth: 
     ------
     CurveSkelError
         Wrong object types, the mesh in edit mode, no deforming bone, a vertex group named like a
-        bone that the user made before the first bind, or heat weighting failing.
+        bone that the user made before the first bind, an armature of zero scale or one that is a
+        child of the mesh (these before anything changes), or heat weighting failing.
     """
     t0 = time.perf_counter()
     method = method.upper()
@@ -250,6 +279,7 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, smooth: 
         raise CurveSkelError(f"bind: smooth must be >= 0, got {smooth}")
     if mesh_obj.mode != 'OBJECT':
         raise CurveSkelError(f"bind: '{mesh_obj.name}' must be in object mode")
+    _check_parenting(mesh_obj, arm_obj)
     me = mesh_obj.data
     n = len(me.vertices)
     warnings: list[str] = []
@@ -268,7 +298,7 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, smooth: 
                                  f"({', '.join(clash[:5])}); rename them first")
     # bound before: groups named like the current bones are ours (Blender renames a bone's
     # group with the bone), groups of bones that no longer exist go
-    stack_index = unbind_mesh(mesh_obj, keep=deform_set)
+    stack_index = unbind_mesh(mesh_obj, keep=deform_set, unparent=False)
     if rebind:
         groups = mesh_obj.vertex_groups
         for nm in deform_set.intersection(groups.keys()):
@@ -326,11 +356,47 @@ def bind_mesh(mesh_obj, arm_obj, skeleton=None, *, blend: float = 0.25, smooth: 
     mesh_obj[MODIFIER_KEY] = mod.name
     if hasattr(mesh_obj, POINTER):
         setattr(mesh_obj, POINTER, arm_obj)
+    if parent_to_armature(mesh_obj, arm_obj):
+        mesh_obj[PARENTED_KEY] = True
     fig["groups"] = len(groups)
     if fig.get("unweighted"):
         warnings.append(f"{fig['unweighted']} vertices got no weight")
     fig["seconds"] = time.perf_counter() - t0
     return fig
+
+
+def _check_parenting(mesh_obj, arm_obj) -> None:
+    """CurveSkelError when ``mesh_obj`` cannot be parented to ``arm_obj`` (before anything changes)."""
+    if abs(arm_obj.matrix_world.determinant()) < 1e-30:
+        raise CurveSkelError(f"bind: armature '{arm_obj.name}' has a zero scale: give it a scale "
+                             "before binding")
+    p = arm_obj
+    while p is not None:
+        if p == mesh_obj:
+            raise CurveSkelError(f"bind: armature '{arm_obj.name}' is a child of '{mesh_obj.name}': "
+                                 "clear its parent first (the mesh is parented to the armature)")
+        p = p.parent
+
+
+def parent_to_armature(mesh_obj, arm_obj) -> bool:
+    """Parent ``mesh_obj`` to ``arm_obj`` as *Parent > Armature Deform* does (type OBJECT, the
+    inverse of the armature's world matrix), keeping the mesh's world transform; a mesh with
+    another parent gets that parent's transform folded into its own. Returns whether anything
+    changed (a mesh already parented to the armature with type OBJECT is left as it is)."""
+    if mesh_obj.parent == arm_obj and mesh_obj.parent_type == 'OBJECT':
+        return False
+    _check_parenting(mesh_obj, arm_obj)
+    had_parent = mesh_obj.parent is not None
+    mw = mesh_obj.matrix_world.copy()
+    mesh_obj.parent = arm_obj
+    mesh_obj.parent_type = 'OBJECT'
+    mesh_obj.parent_bone = ""
+    mesh_obj.matrix_parent_inverse = arm_obj.matrix_world.inverted()
+    if had_parent:
+        # without a parent before, world == basis: left as the user set it (no round trip
+        # through a decomposition)
+        mesh_obj.matrix_world = mw
+    return True
 
 
 def _influence_counts(mesh_obj, groups) -> tuple[int, int]:
@@ -345,8 +411,9 @@ def _influence_counts(mesh_obj, groups) -> tuple[int, int]:
 
 
 def _heat_weights(mesh_obj, arm_obj, deform, warnings):
-    """Blender's automatic (heat) weights; the parenting it makes is undone (curveskel only binds
-    through the modifier). Returns (group names, modifier)."""
+    """Blender's automatic (heat) weights; the parenting it makes is undone (its world transform
+    is not kept for a mesh with another parent: bind_mesh parents the mesh itself afterwards).
+    Returns (group names, modifier)."""
     ctx = bpy.context
     vl = ctx.view_layer
     prev_sel = [o for o in vl.objects if o.select_get()]
@@ -390,9 +457,6 @@ def benchmark_bind(vertices: int = 100_000, *, bones: int = 20, method: str = "S
     :func:`bind_mesh` plus ``build_seconds``. With ``use_mapping=False`` the mapping is recomputed
     by closest point on the bones (the re-bind path).
     """
-    from .armature import build_armature
-    from .core.skeleton import Skeleton
-
     around = 64
     rings = max(vertices // around, 2)
     length, radius = 10.0, 0.5

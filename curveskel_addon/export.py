@@ -1,8 +1,12 @@
 """Export a rigged mesh and its armature with Blender's own glTF (.glb) and FBX exporters.
 
-Only the two objects are written (selection export). The GLB passes the Khronos glTF Validator
-with no error and no warning (tests/blender/test_rig_edits.py runs it when node is available).
-Blender's glTF *importer* adds a hidden "Icosphere" (its bone display shape, in the collection
+Only the two objects are written (selection export). Both exporters want the skinned mesh to be
+a child of its armature, as a bind leaves it (``binding.parent_to_armature``); a mesh that is not
+(its parent cleared by hand) is parented for the export, keeping its world transform, and put
+back after. In the GLB the skinned mesh's node is then moved to the scene's roots, where glTF
+wants it (``gltf_layout``): the file passes the Khronos glTF Validator with no error and no
+warning (tests/blender/test_rig_exports.py runs it when node is available). Blender's glTF
+*importer* adds a hidden "Icosphere" (its bone display shape, in the collection
 "glTF_not_exported") unless imported with ``disable_bone_shape=True``: it is not in the file.
 """
 
@@ -14,6 +18,7 @@ from pathlib import Path
 import bpy
 
 from .core.errors import CurveSkelError
+from .gltf_layout import fix_glb_file
 
 __all__ = ["export_rig", "FORMATS"]
 
@@ -38,7 +43,8 @@ def export_rig(context, mesh_obj, arm_obj, filepath, *, fmt: str | None = None) 
     Returns
     -------
     dict
-        ``path``, ``format``, ``bones``, ``vertices``, ``seconds``.
+        ``path``, ``format``, ``bones``, ``vertices``, ``seconds``, ``moved_to_root`` (GLB: skinned
+        mesh nodes moved to the scene's roots).
 
     Raises
     ------
@@ -56,13 +62,10 @@ def export_rig(context, mesh_obj, arm_obj, filepath, *, fmt: str | None = None) 
     if prev_active is not None and prev_active.mode != 'OBJECT':
         bpy.ops.object.mode_set(mode='OBJECT')
     t0 = time.perf_counter()
-    # FBX expects a skinned mesh to be a child of its armature (curveskel binds through the
-    # modifier only): parent it for the export, keeping its world placement, then restore. glTF
-    # wants the opposite (a skinned mesh node must be a root node, else the Khronos validator
-    # warns NODE_SKINNED_MESH_NON_ROOT): Blender's exporter finds the armature through the
-    # modifier, so the mesh stays unparented.
+    # Both exporters expect a skinned mesh to be a child of its armature (a bind parents it):
+    # a mesh that is not is parented for the export, keeping its world placement, then restored.
     saved = None
-    if fmt == "FBX" and mesh_obj.parent != arm_obj:
+    if mesh_obj.parent != arm_obj or mesh_obj.parent_type != 'OBJECT':
         saved = (mesh_obj.parent, mesh_obj.parent_type, mesh_obj.parent_bone,
                  mesh_obj.matrix_parent_inverse.copy(), mesh_obj.matrix_basis.copy())
         mw = mesh_obj.matrix_world.copy()
@@ -85,8 +88,12 @@ def export_rig(context, mesh_obj, arm_obj, filepath, *, fmt: str | None = None) 
             bpy.ops.export_scene.fbx(filepath=str(path), use_selection=True,
                                      object_types={'ARMATURE', 'MESH'}, add_leaf_bones=False,
                                      bake_anim=False, use_armature_deform_only=False)
+        moved = fix_glb_file(path) if fmt == "GLB" and path.is_file() else 0
     except RuntimeError as exc:
         raise CurveSkelError(f"{fmt} export to '{path}' failed: {exc}") from exc
+    except (OSError, ValueError) as exc:       # Blender ignores a full disk: a truncated file
+        raise CurveSkelError(f"{fmt} export to '{path}' failed: the file written is incomplete "
+                             f"({exc}; disk full?)") from exc
     finally:
         if saved is not None:
             (mesh_obj.parent, mesh_obj.parent_type, mesh_obj.parent_bone,
@@ -98,4 +105,5 @@ def export_rig(context, mesh_obj, arm_obj, filepath, *, fmt: str | None = None) 
     if not path.is_file():
         raise CurveSkelError(f"{fmt} export wrote no file at '{path}'")
     return {"path": str(path), "format": fmt, "bones": len(arm_obj.data.bones),
-            "vertices": len(mesh_obj.data.vertices), "seconds": time.perf_counter() - t0}
+            "vertices": len(mesh_obj.data.vertices), "seconds": time.perf_counter() - t0,
+            "moved_to_root": moved}

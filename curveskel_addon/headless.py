@@ -1,18 +1,23 @@
 """Blender-side helpers for the command line (``scripts/skeletonize.py --blend/--render``).
 
 Import a mesh file with Blender's own importers, run the SAME operator the UI runs
-(``curveskel.generate``), save a .blend, render a Cycles CPU preview. No maths here.
+(``curveskel.generate``), save a .blend, render a Cycles CPU preview (framed and judged by
+``framing``). No maths here.
 """
 
 from __future__ import annotations
 
+import os
+import time
+from math import radians
 from pathlib import Path
 
 import bpy
 import numpy as np
 
-from . import results
+from . import framing, registration, results
 from .core import CurveSkelError
+from .mesh_files import read_mesh   # .off only: trimesh is imported there when a file needs it
 
 __all__ = ["reset_scene", "ensure_registered", "mesh_object_from_arrays", "import_mesh",
            "generate", "save_blend", "render_preview", "cli_outputs"]
@@ -29,8 +34,6 @@ def reset_scene() -> None:
 def ensure_registered() -> None:
     """Register the add-on's classes unless they already are (e.g. the extension is enabled)."""
     if not hasattr(bpy.types, "CURVESKEL_OT_generate"):
-        from . import registration
-
         registration.register()
 
 
@@ -54,7 +57,7 @@ def mesh_object_from_arrays(name: str, V, F, collection=None) -> bpy.types.Objec
 
 
 def import_mesh(path) -> bpy.types.Object:
-    """Import a .obj / .ply / .stl (Blender's importers) or .off (read with trimesh) file.
+    """Import a .obj / .ply / .stl (Blender's importers) or .off (read by :mod:`.mesh_files`) file.
 
     Returns the mesh object, active and selected; several objects in one file are joined.
     Raises CurveSkelError for a missing file, an unknown suffix or a file with no mesh.
@@ -71,8 +74,6 @@ def import_mesh(path) -> bpy.types.Object:
     elif suffix == ".stl":
         bpy.ops.wm.stl_import(filepath=str(path))
     elif suffix == ".off":
-        from .core.mesh_io import read_mesh  # trimesh: command line only, never inside Blender
-
         V, F = read_mesh(path)
         return mesh_object_from_arrays(path.stem, V, F)
     else:
@@ -119,12 +120,24 @@ def render_preview(path, ob, *, resolution=(640, 480), samples: int = 8) -> Path
 
     Armatures do not render: temporary copies of the silhouette's joints and bones draw the
     silhouette (balls of the joint radii joined by cones) and the skeleton (thin tubes, a red
-    ball per joint), ``ob`` is drawn see-through, a camera frames it all, two suns and a light
-    world light it. Afterwards the temporary objects and materials are removed and ``ob`` is as
-    it was (the scene keeps the Cycles settings and the world).
+    ball per joint), ``ob`` is drawn see-through, a camera frames it all at any size (its place
+    and clip distances from the mesh's vertices and the silhouette's balls:
+    ``framing.fit_camera``), two suns and a light world light it. Afterwards the temporary
+    objects and materials are removed and ``ob`` is as it was (the scene keeps the Cycles
+    settings and the world).
+
+    The picture is rendered into a temporary file beside ``path`` and moved there only when it
+    is not blank (``framing.picture_coverage``); a picture that cannot be read back (a full
+    disk) is moved as it is, for the caller's check of the file.
+
+    Raises
+    ------
+    CurveSkelError
+        A blank picture (nothing written), or nothing to frame.
     """
     path = Path(path).resolve()
     path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.stem}.render-{os.getpid()}{path.suffix}")
     scene = bpy.context.scene
     found = results.find_result(ob.name)
     sil = found["silhouette"]
@@ -156,11 +169,27 @@ def render_preview(path, ob, *, resolution=(640, 480), samples: int = 8) -> Path
             if o is not None:      # transparent layers: seen by the camera only (much faster)
                 for k in _VISIBILITY:
                     setattr(o, k, False)
-        _setup_render(scene, path, resolution, samples)     # before framing: the aspect ratio
-        made.append(_camera(coll, ob, sil))
+        _setup_render(scene, tmp, resolution, samples)      # before framing: the aspect ratio
+        cam, fit = _camera(coll, ob, sil)
+        made.append(cam)
         made += _lights(coll)
         bpy.ops.render.render(write_still=True)
+        cover = _coverage(tmp)
+        if cover is not None and cover["fraction"] < framing.BLANK_FRACTION:
+            hint = ""
+            if fit.clip_start < cam.data.clip_start:
+                hint = (f" (Blender's camera clips no nearer than {cam.data.clip_start:.3g}: scale the "
+                        "mesh up for its preview)")
+            raise CurveSkelError(
+                f"the preview render of '{ob.name}' is blank ({cover['fraction']:.2%} of the pixels "
+                f"differ from the background), so no picture was written; the mesh is "
+                f"{max(ob.dimensions):.3g} units across, the camera {fit.distance:.3g} away, "
+                f"clipping at {fit.clip_start:.3g} .. {fit.clip_end:.3g}{hint}")
+        os.replace(tmp, path)
     finally:
+        for leftover in (tmp, Path(str(tmp) + "@")):      # Blender writes "<name>@", then renames
+            if leftover.exists():
+                leftover.unlink()
         if sil is not None and hidden_render is not None:
             sil.hide_render = hidden_render
         for o in made:
@@ -353,30 +382,47 @@ def _world_vertices(ob) -> np.ndarray:
     return co.reshape(-1, 3) @ M[:3, :3].T + M[:3, 3]
 
 
-def _camera(coll, ob, extra=None):
-    """A camera framing ``ob``'s vertices (and ``extra``'s: the skeleton's joints)."""
-    from math import radians
-
+def _camera(coll, ob, sil=None):
+    """A camera framing ``ob``'s vertices and the silhouette ``sil``'s balls (joints and radii),
+    its clip distances set from them. Returns (camera object, framing.CameraFit)."""
+    scene = bpy.context.scene
     cam = bpy.data.objects.new("CurveSkel Preview Camera", bpy.data.cameras.new("CurveSkel Preview Camera"))
     coll.objects.link(cam)
-    world = _world_vertices(ob)
-    if extra is not None:
-        world = np.concatenate([world, _world_vertices(extra)])
-    # Three-quarter view, slightly from above, with the longer horizontal side of the mesh across.
-    ext = np.ptp(world, axis=0)
-    cam.rotation_euler = (radians(72.0), 0.0, radians(125.0 if ext[1] > ext[0] else 35.0))
+    points = _world_vertices(ob)
+    radii = np.zeros(len(points))
+    if sil is not None:
+        points = np.concatenate([points, _world_vertices(sil)])
+        radii = np.concatenate([radii, _skin_radii(sil) * max(abs(c) for c in sil.matrix_world.to_scale())])
+    cam.rotation_euler = framing.view_angles(points)
     cam.data.lens = 50.0
-    bpy.context.view_layer.update()
-    loc, _scale = cam.camera_fit_coords(bpy.context.evaluated_depsgraph_get(), world.ravel().tolist())
-    cam.location = loc
-    cam.data.lens = 50.0 * 0.9             # a margin around the framed object
-    bpy.context.scene.camera = cam
-    return cam
+    tan_x, tan_y = framing.half_fov(cam.data.lens, cam.data.sensor_width, scene.render.resolution_x,
+                                    scene.render.resolution_y)
+    fit = framing.fit_camera(points, np.array(cam.rotation_euler.to_matrix()), tan_x, tan_y, radii=radii)
+    cam.location = fit.location.tolist()
+    cam.data.clip_start = fit.clip_start
+    cam.data.clip_end = fit.clip_end
+    scene.camera = cam
+    return cam, fit
+
+
+def _coverage(path) -> dict | None:
+    """``framing.picture_coverage`` of the picture file at ``path``; None when it cannot be read."""
+    try:
+        img = bpy.data.images.load(str(path), check_existing=False)
+    except RuntimeError:
+        return None
+    try:
+        w, h = img.size
+        if not (w and h and img.has_data):
+            return None
+        px = np.empty(w * h * 4, np.float32)
+        img.pixels.foreach_get(px)
+        return framing.picture_coverage(px.reshape(h, w, 4))
+    finally:
+        bpy.data.images.remove(img)
 
 
 def _lights(coll) -> list:
-    from math import radians
-
     out = []
     for name, energy, rot in (("Key", 3.0, (50.0, 10.0, 30.0)), ("Fill", 1.0, (60.0, -20.0, -120.0))):
         light = bpy.data.lights.new(f"CurveSkel Preview {name}", 'SUN')
@@ -418,8 +464,6 @@ def cli_outputs(mesh_path, params: dict, *, blend=None, render=None, bind: bool 
     """What ``skeletonize.py --blend/--render`` does: a fresh scene, the mesh through Blender's
     importer, the ``curveskel.generate`` operator with ``params`` (SkeletonParams fields), then
     the .blend and/or the preview picture. Returns the objects and timings."""
-    import time
-
     reset_scene()
     ensure_registered()
     ob = import_mesh(mesh_path)

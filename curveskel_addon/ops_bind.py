@@ -55,8 +55,9 @@ def bind_targets(context, armature_name: str = ""):
 
 
 class CURVESKEL_OT_bind(bpy.types.Operator):
-    """Bind the mesh to its armature as it is now (edited bones included): an Armature modifier and
-    one vertex group per deforming bone. Re-binding replaces only what curveskel added before"""
+    """Bind the mesh to its armature as it is now (edited bones included): an Armature modifier,
+    one vertex group per deforming bone, and the armature as the mesh's parent (its world
+    transform kept). Re-binding replaces only what curveskel added before"""
 
     bl_idname = "curveskel.bind"
     bl_label = "Bind Mesh to Skeleton"

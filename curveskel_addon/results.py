@@ -20,6 +20,13 @@ from __future__ import annotations
 import json
 
 import bpy
+from mathutils import Matrix
+
+from .binding import POINTER
+from .core.errors import CurveSkelError
+from .rig.graph_root import central_joints
+from .rig.rig_layout import rig_layout
+from .run_summary import summary
 
 __all__ = ["COLLECTION_NAME", "FIGURE_KEYS", "collection", "result_names", "find_result",
            "source_of", "source_object", "previous_results", "remove_objects", "adopt_names", "tag",
@@ -34,13 +41,19 @@ ARMATURE_POINTER = "curveskel_result_armature"
 SILHOUETTE_POINTER = "curveskel_result_silhouette"
 _ROLE_POINTER = {"armature": ARMATURE_POINTER, "silhouette": SILHOUETTE_POINTER}
 #: Custom-property keys of the figures, with their labels in the panel.
+#: J0 and J: the objective of the first stage of the search and of the result (the paper's
+#: solver: its E); E: the paper's E of the result; Stages: the search's kept stages; Steps: its
+#: minimisation steps (the paper's solver: gradient-descent iterations).
 FIGURE_KEYS = {
     "curveskel_n_joints": "Joints",
     "curveskel_n_bones": "Bones",
     "curveskel_components": "Parts",
+    "curveskel_J0": "J0",
+    "curveskel_J": "J",
     "curveskel_E0": "E0",
     "curveskel_E": "E",
-    "curveskel_iterations": "Iterations",
+    "curveskel_stages": "Stages",
+    "curveskel_iterations": "Steps",
     "curveskel_seconds": "Seconds",
 }
 
@@ -48,8 +61,6 @@ FIGURE_KEYS = {
 def pointer_properties():
     """(type, attribute, property) of the Object pointers above and the binding's armature
     pointer (``binding.POINTER``), for ``registration.py``."""
-    from .binding import POINTER
-
     P = bpy.props.PointerProperty
     O = bpy.types.Object
     return ((O, SOURCE_POINTER, P(type=O, name="CurveSkel Source",
@@ -149,10 +160,18 @@ def previous_results(source, keep=()) -> list:
 
 
 def remove_objects(objects) -> None:
-    """Delete objects and their data-blocks when nothing else uses them."""
-    for ob in list(objects):
-        if ob is None:
-            continue
+    """Delete objects and their data-blocks when nothing else uses them. Children that stay (a
+    mesh bound to a replaced armature) lose their parent but keep their world transform."""
+    objects = [ob for ob in objects if ob is not None]
+    going = {ob.as_pointer() for ob in objects}
+    for ob in objects:
+        for child in ob.children:
+            if child.as_pointer() not in going:
+                mw = child.matrix_world.copy()
+                child.parent = None
+                child.matrix_parent_inverse = Matrix.Identity(4)
+                child.matrix_world = mw
+    for ob in objects:
         data = ob.data
         bpy.data.objects.remove(ob, do_unlink=True)
         if data is not None and data.users == 0:
@@ -181,12 +200,15 @@ def tag(ob, source, role: str) -> None:
 
 def store_figures(ob, skeleton, *, params: dict, stopped: bool = False) -> None:
     """Write the result's figures on ``ob`` as custom properties (see FIGURE_KEYS)."""
-    s = skeleton.summary()
+    s = summary(skeleton)
     ob["curveskel_n_joints"] = int(s["joints"])
     ob["curveskel_n_bones"] = int(s["bones"])
     ob["curveskel_components"] = int(s["components"])
+    ob["curveskel_J0"] = float(s["J0"])
+    ob["curveskel_J"] = float(s["J"])
     ob["curveskel_E0"] = float(s["E0"])
     ob["curveskel_E"] = float(s["E"])
+    ob["curveskel_stages"] = int(s["stages"])
     ob["curveskel_iterations"] = int(s["iterations"])
     ob["curveskel_seconds"] = round(float(s["seconds"]), 3)
     ob["curveskel_stopped"] = bool(stopped)
@@ -202,11 +224,7 @@ def figures(ob) -> dict:
 
 def root_joints(skeleton):
     """Root joint of every connected part: the joints the armature roots its parts at
-    (``core.rig_layout``), i.e. each part's most central joint."""
-    from .core.errors import CurveSkelError
-    from .core.graph_root import central_joints
-    from .core.rig_layout import rig_layout
-
+    (``rig.rig_layout``), i.e. each part's most central joint."""
     if skeleton.n_bones:
         try:
             return rig_layout(skeleton.joints, skeleton.bones).roots

@@ -30,7 +30,7 @@ __all__ = ["Job", "make_settings", "new_row", "process", "remove_temps_of", "ROW
 
 #: the results table's first columns, in order (other keys follow, sorted)
 ROW_KEYS = ("path", "status", "reason", "sha256", "reused", "vertices", "faces", "components",
-            "joints", "bones", "E0", "E_fit", "E", "J", "iterations", "seconds", "peak_mb",
+            "joints", "bones", "J0", "J", "E0", "E", "stages", "iterations", "seconds", "peak_mb",
             "skeleton_sha256", "outputs", "worker", "source")
 #: set to 1 in a worker's environment, a mesh file whose first line is
 #: ``# curveskel-batch-test: crash|hang|memory`` makes the worker die by SIGSEGV, sleep, or
@@ -155,7 +155,7 @@ def _compute_and_write(job: Job, outs: dict, row: dict, t0: float, peak_mb) -> N
     from ..cli.outputs import commit, temp_path
     from ..core import SkeletonParams, skeletonize
     # the command line's reader (the one place the batch reads mesh files)
-    from ..core.mesh_io import read_mesh
+    from ..mesh_files import read_mesh
     from .records import file_sha256, record_path, skeleton_digest
 
     s = job.settings
@@ -164,7 +164,7 @@ def _compute_and_write(job: Job, outs: dict, row: dict, t0: float, peak_mb) -> N
     params = SkeletonParams.from_dict(s["params"])
     sk = skeletonize(V, F, params)
     if s.get("quality"):
-        from ..core.quality import quality
+        from ..measure.quality import quality
 
         sk.meta["quality"] = quality(V, F, sk)
     _fill_row(row, sk)
@@ -191,15 +191,15 @@ def _compute_and_write(job: Job, outs: dict, row: dict, t0: float, peak_mb) -> N
 
 
 def _fill_row(row: dict, sk) -> None:
-    """The skeleton's figures: whatever its summary reports (joints, bones, components, E0,
-    E_fit, E, iterations, ...), the objective ``J`` where meta has one, quality measures."""
-    for k, v in sk.summary().items():
-        if k != "seconds" and isinstance(v, (int, float)):
-            row[k] = v
-    for k in ("J", "E"):
-        v = sk.meta.get(k)
-        if isinstance(v, (int, float)) and not isinstance(v, bool) and row.get(k) is None:
-            row[k] = v
+    """The skeleton's figures as the command line's summary reports them
+    (:func:`curveskel_addon.run_summary.summary`): joints, bones, components, J0 and J (the
+    objective the search minimises; ``meta['J']``), E0 and E (the paper's E, not minimised),
+    stages, iterations; quality measures."""
+    from ..run_summary import summary
+
+    for k, v in summary(sk).items():
+        if k != "seconds" and isinstance(v, (int, float)) and not isinstance(v, bool):
+            row[k] = v if v == v else None          # NaN (not computed) -> empty
     q = sk.meta.get("quality")
     if isinstance(q, dict):
         row["quality"] = json.loads(json.dumps(q))   # plain JSON values

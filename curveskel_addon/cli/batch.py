@@ -29,7 +29,7 @@ _EPILOG = """\
 Outputs mirror the input tree under DIR: lib/chairs/a.obj -> DIR/chairs/a.obj.json (and
 a.obj.glb, .fbx, .blend when asked), each written to a temporary file and renamed when
 complete; DIR/results.jsonl and DIR/results.csv hold one row per asset (path, input SHA-256,
-status ok / refused / timeout / memory / crashed with its reason, vertices, joints, bones, E,
+status ok / refused / timeout / memory / crashed with its reason, vertices, joints, bones, J,
 seconds, peak memory, ...).
 
 Run the same command again to resume: an asset whose input, settings and outputs are unchanged

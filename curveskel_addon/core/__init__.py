@@ -1,20 +1,38 @@
-"""curveskel core: curve-skeletons of triangle meshes by energy minimisation. Pure NumPy/SciPy.
+"""curveskel core: a curve-skeleton as the minimiser of one objective J. Pure NumPy/SciPy.
 
-Never imports bpy. Arrays in, a :class:`Skeleton` out. ``skeletonize`` and ``SkeletonRun`` are
-loaded on first use (PEP 562), so importing one stage's module does not import every stage.
+Never imports bpy. Arrays in, a :class:`Skeleton` out. The package follows the method:
+
+==========================  ==================================================================
+``mesh_input``              the input checked and cleaned: one :class:`CurveSkelError` per bad
+                            mesh, a working copy (duplicates merged, parts turned outwards...)
+``mesh``, ``graph``         the values the stages pass: the immutable :class:`Mesh` (V, F, D,
+                            its inside test, adjacency, cross-sections) and the search's
+                            :class:`SkeletonGraph` (joints, bones, Reeb regions' bones)
+``geometry/``               the kernel, importing nothing above it: closest points on bones,
+                            inside test, cross-sections and their derivatives, surface
+                            quadrature, enclosing balls, mesh graph
+``initialise/``             the paper's first approximation: pole, Reeb graph of the geodesic
+                            distance, contours' enclosing balls, at the spacing's resolution;
+                            separate parts joined into figures where they overlap or nearly
+                            touch, small free parts hung from larger ones (``parts``)
+``objective/``              J: its terms with exact Jacobians, its evaluation, the
+                            minimisation over joints and radii; and the paper's E and solver
+``moves/``                  topology moves as pure functions (graph -> graph, bone map), and
+                            estimates of what each would change in J
+``search``                  the search: minimisation and moves, each kept only when J falls
+``pipeline``                :func:`skeletonize`, :class:`SkeletonRun`: the stages in order
+``config``, ``params``      every constant of the method; the user's settings
+``skeleton``, ``errors``    the result and its JSON; the one exception type
+==========================  ==================================================================
+
+The measures (``curveskel_addon.measure``) and the rig (``curveskel_addon.rig``) sit outside:
+they import the core, the core never imports them.
 """
 
 from .errors import CurveSkelError
 from .params import SOLVERS, SkeletonParams
+from .pipeline import RunState, SkeletonRun, skeletonize
 from .skeleton import FORMAT, Skeleton
 
-__all__ = ["CurveSkelError", "SOLVERS", "SkeletonParams", "SkeletonRun", "skeletonize",
-           "Skeleton", "FORMAT"]
-
-
-def __getattr__(name):
-    if name in ("skeletonize", "SkeletonRun"):
-        from . import pipeline
-
-        return getattr(pipeline, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__all__ = ["CurveSkelError", "SOLVERS", "SkeletonParams", "SkeletonRun", "RunState",
+           "skeletonize", "Skeleton", "FORMAT"]

@@ -7,14 +7,18 @@ Every tolerance is relative to the size ``D`` of the mesh (the diagonal of the b
 the vertices the faces use), never absolute, so scaling or moving a mesh cleans it the same way:
 
 * vertices at one position are merged; where the surface has open edges (a triangle soup, a
-  crack) vertices on them closer than ``MERGE_TOLERANCE * D`` are merged too;
+  crack) vertices on them closer than ``_CFG.merge_tolerance * D`` are merged too;
 * faces with a repeated vertex, repeated faces, and faces thinner than the merge tolerance
   (zero-area slivers) are dropped;
 * face winding is made consistent across every manifold edge and each connected part is turned
   to face outwards (positive signed volume), so inverted normals do not matter;
 * holes are capped (a fan from each loop of open edges to its mean), so every part has an
   inside: an open bowl becomes a half-ball;
-* parts with less than ``min_component_area`` of the total area (scan debris) are dropped;
+* debris is dropped, judged per part: a part smaller than the *Detail Size* of its nearest
+  neighbour (its enclosing ball's radius below ``detail`` times the neighbour's) is below the
+  resolution the neighbour is skeletonized at (:func:`_debris`); equal parts never are, so
+  200 equal spheres stay 200 parts. Optionally also parts with less than
+  ``min_component_area`` of the total area;
 * a mesh flat to within the tolerance (no volume at all) is refused.
 """
 
@@ -23,20 +27,19 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
+from .config import CONFIG
 from .errors import CurveSkelError
-from .rows import col_max, col_min, next_corners, row_sumsq, rows_differ, take_rows
+from .geometry.mesh_graph import components
+from .geometry.rows import col_max, col_min, next_corners, row_sumsq, rows_differ, take_rows
 
-__all__ = ["CleanMesh", "clean_mesh", "triangulate", "MERGE_TOLERANCE", "FLAT_TOLERANCE"]
+__all__ = ["CleanMesh", "clean_mesh", "triangulate"]
 
-#: Vertices on open edges closer than this fraction of the mesh size are one vertex; faces
-#: thinner than it (height over their longest side) have no area.
-MERGE_TOLERANCE = 1e-5
-#: A mesh whose vertices all lie within this fraction of its size of one plane is flat.
-FLAT_TOLERANCE = 1e-5
-#: A part is turned over only when its signed volume is clearly negative: |vol| above this share
-#: of the sum of the absolute per-face volumes (a flat or self-cancelling part is left alone).
-ORIENT_MARGIN = 1e-3
+_CFG = CONFIG.input
 
 
 @dataclass
@@ -170,7 +173,6 @@ def _edge_census(F: np.ndarray, n: int):
     Returns (boundary, nonmanifold, inconsistent) edge counts and the (n, n) sparse edge matrix
     (its connected components are the mesh's). A sparse matrix sums the two directions in one
     pass (as :func:`.mesh_graph.edge_table`, no sort of the 3m sides)."""
-    import scipy.sparse as sp
 
     a = F.ravel()
     b = next_corners(F).ravel()
@@ -200,9 +202,6 @@ def _merge_close(V: np.ndarray, inverse: np.ndarray, candidates: np.ndarray, tol
     """Merge the ``candidates`` (indices into V) lying within ``tol`` of each other (chains
     included); each cluster takes the position and the place of its first member (so vertices
     of a clean part never move). Returns (V, inverse, merged count)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
 
     if len(candidates) < 2:
         return V, inverse, 0
@@ -247,8 +246,6 @@ def _consistent_winding(F: np.ndarray, n: int, weight: np.ndarray):
     directions by its two faces). Within each connected patch the winding of the larger share
     of ``weight`` (face area) is kept. Returns (flip mask (m,), patch label per face,
     number of non-orientable patches, left as they are)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
 
     m = len(F)
     a = F.ravel()
@@ -302,8 +299,6 @@ def _cap_holes(V: np.ndarray, F: np.ndarray, labels: np.ndarray):
 
     The method needs an inside (contours, inside tests); a capped bowl is a half-ball, an open
     tube a closed one. Returns (V, F, labels, holes, cap area)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
 
     n = len(V)
     a = F.ravel()
@@ -341,11 +336,11 @@ def _boundary_vertices(A) -> np.ndarray:
 
 def _flat_components(V: np.ndarray, labels: np.ndarray, k: int, centre=None) -> np.ndarray:
     """(k,) bool: the components whose vertices lie in one plane (RMS distance from their plane
-    of best fit at most ``FLAT_TOLERANCE`` of their RMS radius)."""
+    of best fit at most ``_CFG.flat_tolerance`` of their RMS radius)."""
     if k == 1:
         centre = V.mean(axis=0) if centre is None else centre     # (V's mean, if at hand)
         size = float(np.sqrt(row_sumsq(V - centre).mean()))
-        return np.array([_thickness(V, centre) <= FLAT_TOLERANCE * size])
+        return np.array([_thickness(V, centre) <= _CFG.flat_tolerance * size])
     cnt = np.maximum(np.bincount(labels, minlength=k), 1).astype(np.float64)
     mean = np.stack([np.bincount(labels, weights=V[:, j], minlength=k) for j in range(3)], 1) / cnt[:, None]
     X = V - mean[labels]
@@ -354,7 +349,7 @@ def _flat_components(V: np.ndarray, labels: np.ndarray, k: int, centre=None) -> 
         for j in range(i, 3):
             C[:, i, j] = C[:, j, i] = np.bincount(labels, weights=X[:, i] * X[:, j], minlength=k) / cnt
     lam = np.linalg.eigvalsh(C)                       # ascending
-    return np.sqrt(np.maximum(lam[:, 0], 0.0)) <= FLAT_TOLERANCE * np.sqrt(np.maximum(lam.sum(axis=1), 0.0))
+    return np.sqrt(np.maximum(lam[:, 0], 0.0)) <= _CFG.flat_tolerance * np.sqrt(np.maximum(lam.sum(axis=1), 0.0))
 
 
 def _thickness(V: np.ndarray, centre=None) -> float:
@@ -373,7 +368,54 @@ def _thickness(V: np.ndarray, centre=None) -> float:
     return float(np.ptp((V - centre) @ vt[-1]))
 
 
-def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
+def _debris(V: np.ndarray, labels: np.ndarray, k: int, usable: np.ndarray,
+            detail: float) -> np.ndarray:
+    """(k,) bool: the usable parts below the *Detail Size* of their nearest usable neighbour.
+
+    Each part is taken as the ball about its vertices' mean through its farthest vertex (no
+    rotation, move or renumbering changes it). A part's nearest neighbour is the one whose ball
+    comes closest to (or reaches deepest into) its own; the part is debris when its radius is
+    below ``detail`` times the neighbour's: a speck the neighbour's first approximation (its
+    contours ``detail`` of its size apart) could not resolve. The largest part never is.
+    Pairs are compared in blocks (``CONFIG.numerics.block`` at a time).
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    labels : (n,) int
+        Part of every vertex.
+    k : int
+        Number of parts.
+    usable : (k,) bool
+        Parts to judge and to compare with (flat parts and open fragments are not).
+    detail : float
+        The *Detail Size*: a share of a part's size.
+
+    Returns
+    -------
+    (k,) bool
+    """
+    out = np.zeros(k, bool)
+    ids = np.flatnonzero(usable)
+    if detail <= 0 or len(ids) < 2:
+        return out
+    cnt = np.maximum(np.bincount(labels, minlength=k), 1).astype(np.float64)
+    centre = np.stack([np.bincount(labels, weights=V[:, j], minlength=k) for j in range(3)],
+                      axis=1) / cnt[:, None]
+    radius = np.zeros(k)
+    np.maximum.at(radius, labels, np.sqrt(row_sumsq(V - centre[labels])))
+    C, R = centre[ids], radius[ids]
+    step = max(1, CONFIG.numerics.block // len(ids))
+    for s in range(0, len(ids), step):
+        e = min(s + step, len(ids))
+        gap = np.sqrt(np.maximum(row_sumsq((C[s:e, None, :] - C[None, :, :]).reshape(-1, 3)), 0.0))
+        gap = gap.reshape(e - s, -1) - R[s:e, None] - R[None, :]
+        gap[np.arange(e - s), np.arange(s, e)] = np.inf          # not its own neighbour
+        out[ids[s:e]] = R[s:e] < detail * R[np.argmin(gap, axis=1)]
+    return out
+
+
+def clean_mesh(V, F, *, min_component_area: float = 0.0, detail: float = 0.0) -> CleanMesh:
     """Validate a mesh and return its working copy.
 
     Raises :class:`CurveSkelError` for: no vertices, vertices not of shape (n, 3), NaN or inf
@@ -381,15 +423,16 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
     non-zero area, and a flat mesh (every vertex in one plane: no volume to skeletonize).
 
     Repairs (and counts in ``info``): polygons (triangulated), duplicate vertex positions
-    (merged; on open edges within ``MERGE_TOLERANCE`` of the size), faces with a repeated vertex
+    (merged; on open edges within ``_CFG.merge_tolerance`` of the size), faces with a repeated vertex
     or repeated faces (dropped), zero-area faces (dropped), inconsistent or inward winding
-    (turned over: ``flipped_faces``), connected parts with less than ``min_component_area`` of
-    the total area (dropped; 0 keeps all; the largest part is always kept), holes (capped with a
+    (turned over: ``flipped_faces``), debris (parts below the *Detail Size* ``detail`` of their
+    nearest neighbour, :func:`_debris`; 0 keeps all) and connected parts with less than
+    ``min_component_area`` of the total area (dropped; 0 keeps all; the largest part is always
+    kept): ``small_components_dropped``, holes (capped with a
     fan to a new working vertex: ``holes_capped``), isolated vertices.
     Vertices left out of the working mesh have ``work_index`` -1 (mapped to the skeleton
     afterwards by the nearest working vertex).
     """
-    from .mesh_graph import components
 
     V = np.asarray(V)
     if V.size == 0:
@@ -417,6 +460,12 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
         min_component_area = float("nan")
     if not 0.0 <= min_component_area < 1.0:
         raise CurveSkelError(f"min_component_area must be >= 0 and < 1, got {min_component_area!r}")
+    try:
+        detail = float(detail)
+    except (TypeError, ValueError):
+        detail = float("nan")
+    if not 0.0 <= detail < 1.0:
+        raise CurveSkelError(f"detail must be >= 0 and < 1, got {detail!r}")
 
     # Merge vertices at identical positions (STL soup, seams) so connectivity is real.
     uniq, inverse = _merge_identical(V)
@@ -430,7 +479,7 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
     size = float(np.linalg.norm(col_max(Vu) - col_min(Vu)))
     if size == 0.0:
         raise CurveSkelError("every face has zero area (all vertices at one point): nothing to skeletonize")
-    tol = MERGE_TOLERANCE * size
+    tol = _CFG.merge_tolerance * size
 
     boundary, nonmanifold, inconsistent, edges = _edge_census(Fm, len(uniq))
     merged_close = 0
@@ -494,7 +543,6 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
     if reuse_edges:
         # The working mesh is the one of the last census: its edge matrix gives the components
         # (the same labels as mesh_graph.components: both number them by their first vertex).
-        from scipy.sparse.csgraph import connected_components
 
         k, labels = connected_components(edges, directed=False)
     else:
@@ -519,7 +567,7 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
         term[flip] = -term[flip]
     vol = np.bincount(group, weights=term, minlength=ng)
     absvol = np.bincount(group, weights=np.abs(term), minlength=ng)
-    inward = vol < -ORIENT_MARGIN * absvol
+    inward = vol < -_CFG.orient_margin * absvol
     if inward.any():
         flip ^= inward[group]
     reoriented = int(np.count_nonzero(inward))
@@ -559,6 +607,8 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
         usable_area = carea[~unusable]
         small = ~unusable & (carea < min_component_area * float(usable_area.sum()))
         small[np.flatnonzero(~unusable)[int(np.argmax(usable_area))]] = False
+    if detail > 0 and k > 1:
+        small |= _debris(Vw, labels, k, ~unusable, detail)
     drop = unusable | small
     small_vertices = 0
     if drop.any():
@@ -604,6 +654,8 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
         info["cap_area_share"] = cap_area / max(float(carea[~drop].sum()), 1e-300)
     if min_component_area > 0:
         info["min_component_area"] = min_component_area
+    if detail > 0:
+        info["detail"] = float(detail)
     if flat.any():
         info["flat_components_dropped"] = int(flat.sum())
     if (fragment & ~flat).any():

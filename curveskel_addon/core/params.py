@@ -6,6 +6,7 @@ Every parameter is checked here, once, whoever builds it (API, command line, Ble
 
 from __future__ import annotations
 
+import difflib
 import math
 import numbers
 from dataclasses import asdict, dataclass, fields
@@ -14,99 +15,83 @@ from .errors import CurveSkelError
 
 __all__ = ["SkeletonParams", "SOLVERS", "RULES", "check_params"]
 
-#: "paper": gradient descent with exact line search, stopped as in eqs. 30-31 (reproduces the
-#: paper). "lm": Levenberg-Marquardt on the 4-per-joint normal equations (converges).
-SOLVERS = ("paper", "lm")
+#: "lm": the search for the minimum of the objective J (Levenberg-Marquardt on the joints,
+#: topology moves kept only when J falls; :mod:`.search`). "paper": the paper's method as
+#: published (its first approximation, then gradient descent on E with the exact line search,
+#: stopped as in its eqs. 30-31).
+SOLVERS = ("lm", "paper")
 
 
 @dataclass
 class SkeletonParams:
     """Parameters of :func:`curveskel_addon.core.skeletonize`.
 
-    The first four are the artist's settings (the Blender panel shows only these; the rest sit
-    under *Advanced* and in the command line's "advanced" group).
+    The first four are the artist's settings, each mapped to exactly one thing of the method
+    (the Blender panel shows only these; the rest sit under *Advanced* and in the command
+    line's "advanced" group).
 
     Attributes
     ----------
     spacing : float
-        *Detail.* Distance between the cross-sections (Reeb contours) as a fraction of each
-        component's size (the diameter of its enclosing ball): smaller finds smaller parts and gives more joints.
-        Refined automatically where a handle would otherwise be lost.
+        *Detail Size.* The first approximation's spacing: the distance between the contour
+        levels of its Reeb graph, as a fraction of each part's size (the diameter of its
+        enclosing ball). Smaller finds smaller parts.
     smoothness : float
-        *Smoothness* of the centred curve: weight of a chain joint's distance from the midpoint
-        of its neighbours against the medial points it explains (scale-free; 0 follows the
-        medial points exactly, 10 is nearly straight between branchings). See :mod:`.centreline`.
+        *Smoothness.* The weight of J's smoothness term (how much the chains turn and their
+        radii bend), in units of :data:`.config.WEIGHTS` ``.smooth``: 0 lets the curve follow
+        the sections' centres exactly, 10 makes chains nearly straight between junctions.
     prune : float
-        *Branch pruning.* A leaf branch reaching out of its junction's ball by less than this
-        many of its own radii is a bump of the junction and is removed (0 keeps all).
+        *Branch Pruning.* The price of a branch (a tip) in J, in units of :data:`.config.WEIGHTS`
+        ``.branch``: a branch stays only where it explains more of the surface than it costs
+        (0 keeps every branch the first approximation found).
     max_joints : int
-        *Max joints.* Chains are simplified further until the skeleton has at most this many
-        joints (0: no limit).
+        *Max Joints.* A hard upper bound on the joints of the result (0: none).
     solver : str
-        One of :data:`SOLVERS` ("lm": Levenberg-Marquardt, default; "paper": gradient descent
-        with the exact line search, as published).
+        One of :data:`SOLVERS`.
     max_iterations : int
-        Upper bound on optimisation iterations of the final fit.
+        At most this many steps per minimisation ("lm"), or gradient-descent iterations
+        ("paper").
     tolerance : float
-        Stop when one iteration lowers E by less than ``tolerance * E0`` (eq. 30-31: 1e-3).
+        "paper": stop when an iteration lowers E by less than ``tolerance * E0`` (eqs. 30-31:
+        1e-3).
     seed : int
-        Seed of the random first vertex of the pole search and of the fit subsets.
-    area_weighted : bool
-        Weight each vertex by its Voronoi area (surface integral of eq. 8 instead of a vertex sum).
-    refit_mapping : bool
-        Re-fit sigma (each vertex's bone and t) to the closest bone point between solver steps.
-        Off by default: a free re-fit turns E into a distance to the silhouette, which rewards
-        bones that fill the volume (issue 10); sigma stays on the bones of its Reeb region.
-    centre : bool
-        Centre the Reeb graph's curve on the medial points and simplify it (the rig-ready
-        formulation, :mod:`.centreline`, :mod:`.edit`); off in :meth:`paper`.
-    centring : float
-        Weight holding each joint to its centred position during the final fit of E (relative
-        to E: 1 means a displacement of one median radius at every joint costs E0; 0 lets E
-        move the joints freely). See :mod:`.solvers.lm`.
-    containment : float
-        Weight of a term keeping each joint, and points along each bone, inside the mesh with
-        their balls inside the surface ("lm" only; 0 disables). Relative to E.
-    simplify : float
-        Chain joints are merged while the chain stays within this fraction of the local radius
-        of the straight bone replacing them (Douglas-Peucker; 0 disables).
-    max_fit_points : int
-        Above this many vertices the final fit uses an area-weighted random subset of this
-        size (a quadrature of the same surface integral) and maps every vertex at the end.
-        0 = always fit every vertex.
+        Where the pole search starts: 0 at the vertex farthest from the centroid (the same
+        skeleton whatever the mesh's numbering or pose), another value at a random vertex, as in
+        the paper. Moving the pole can change which branches the first approximation finds.
     min_component_area : float
         Connected parts of the mesh with less than this share of the total surface area are
-        dropped before the fit (scan debris, specks); their vertices are mapped to the nearest
-        kept part. The largest part is always kept. 0 keeps every part. Reported in
-        ``meta["input"]`` (``small_components_dropped`` ...).
+        dropped before the fit; their vertices are mapped to the nearest kept part. The
+        largest part is always kept. 0 (the default) drops none by share: debris is judged per
+        part instead, against its nearest neighbour (a part below its neighbour's *Detail
+        Size* is dropped: :func:`.mesh_input.clean_mesh`), so 200 equal spheres stay 200 parts.
+    separate_parts : bool
+        One skeleton per connected part, as the parts are modelled. By default parts that
+        overlap or nearly touch are joined where they meet and small free parts hang from the
+        nearest larger part, so a figure modelled in pieces gets one tree
+        (:mod:`.initialise.parts`).
     """
 
     spacing: float = 0.025
-    smoothness: float = 0.5
-    prune: float = 0.5
+    smoothness: float = 1.0
+    prune: float = 1.0
     max_joints: int = 150
     solver: str = "lm"
     max_iterations: int = 30
     tolerance: float = 1e-3
     seed: int = 0
-    area_weighted: bool = True
-    refit_mapping: bool = False
-    centre: bool = True
-    centring: float = 3.0
-    containment: float = 1.0
-    simplify: float = 0.25
-    max_fit_points: int = 30000
-    min_component_area: float = 0.01
+    min_component_area: float = 0.0
+    separate_parts: bool = False
 
     def __post_init__(self):
         check_params(self)        # one place for every rule: API, command line and Blender
 
     @classmethod
     def paper(cls, **overrides) -> "SkeletonParams":
-        """The method exactly as the paper describes it (vertex sum, fixed sigma, gradient descent)."""
-        base = dict(spacing=0.04, solver="paper", area_weighted=False, refit_mapping=False,
-                    prune=0.0, simplify=0.0, centre=False, centring=0.0, max_iterations=1000,
-                    smoothness=0.0, containment=0.0, max_fit_points=0, max_joints=0)
+        """The method exactly as the paper describes it: its first approximation (Reeb graph of
+        the geodesic distance, contours' enclosing balls), then gradient descent on E (eq. 20,
+        the vertex sum) with the exact line search, stopped as in eqs. 30-31."""
+        base = dict(spacing=0.04, solver="paper", max_iterations=1000, smoothness=0.0,
+                    prune=0.0, max_joints=0)
         base.update(overrides)
         return cls.from_dict(base)
 
@@ -133,23 +118,17 @@ class SkeletonParams:
 #: A field without a rule is still type-checked from its default's type (finite for floats).
 RULES: dict[str, tuple] = {
     # upper bounds: far past any useful value in the setting's own unit, well before the
-    # numbers overflow (smoothness or centring at 1e308 broke the linear solves)
+    # numbers overflow (a weight of 1e308 broke the linear solves)
     "spacing": ("float", (0.0,), 0.5),
+    "smoothness": ("float", 0.0, 1000.0),           # 10 is nearly straight already
+    "prune": ("float", 0.0, 1000.0),
+    "max_joints": ("int", 0, 100_000),
     "solver": ("choice", SOLVERS, None),
     "max_iterations": ("int", 0, 100_000),
     "tolerance": ("float", (0.0,), 1.0),
     "seed": ("int", 0, 2**32 - 1),                  # NumPy's seed range
-    "area_weighted": ("bool", None, None),
-    "refit_mapping": ("bool", None, None),
-    "prune": ("float", 0.0, 100.0),                 # radii (0.5 by default)
-    "simplify": ("float", 0.0, 100.0),              # radii (0.25)
-    "smoothness": ("float", 0.0, 1000.0),           # 10 is nearly straight already
-    "containment": ("float", 0.0, 1000.0),          # relative to E (1)
-    "max_fit_points": ("int", 0, 100_000_000),
-    "max_joints": ("int", 0, 100_000),
-    "centre": ("bool", None, None),
-    "centring": ("float", 0.0, 1000.0),             # relative to E (3)
     "min_component_area": ("float", 0.0, (1.0,)),
+    "separate_parts": ("bool", None, None),
 }
 
 
@@ -218,8 +197,6 @@ def _range_text(low, high) -> str:
 
 
 def _unknown_message(unknown, names) -> str:
-    import difflib
-
     out = []
     for k in unknown:
         close = difflib.get_close_matches(str(k), names, n=1)

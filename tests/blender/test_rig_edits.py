@@ -7,12 +7,6 @@ bones they edit by where they are (the arm along +x, ...), never by a joint coun
 skeletonizer. conftest.py registers the add-on and empties the scene before every test.
 """
 
-import json
-import os
-import shutil
-import struct
-import subprocess
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -21,11 +15,17 @@ import numpy as np
 import pytest
 from mathutils import Matrix, Quaternion
 
+import gltf_validator
 import meshes
 from curveskel_addon import results
 from curveskel_addon.binding import GROUPS_KEY, MODIFIER_NAME, POINTER, bind_mesh
 from curveskel_addon.export import export_rig
+from curveskel_addon.gltf_layout import read_glb
 from test_rigging import evaluated, leaf_and_arm_bone, mesh_object, rigged, rotate, weight_matrix
+
+#: A coarser Detail Size where a test is about the rig's bookkeeping, not the skeleton's detail
+#: (the core's search takes seconds a run at the default).
+FAST = {"spacing": 0.08}
 
 
 @contextmanager
@@ -177,7 +177,7 @@ def test_added_bones_deforming_and_not():
 def test_rename_mesh_then_bind_and_regenerate_gives_one_rig():
     V, F = meshes.bent_capsule()
     ob = mesh_object("L", V, F)
-    assert bpy.ops.curveskel.generate('EXEC_DEFAULT', bind=True) == {'FINISHED'}
+    assert bpy.ops.curveskel.generate('EXEC_DEFAULT', bind=True, **FAST) == {'FINISHED'}
     arm = bpy.data.objects["L.skeleton"]
     ob.name = "Leg"
     arm.name = "my rig"
@@ -188,7 +188,7 @@ def test_rename_mesh_then_bind_and_regenerate_gives_one_rig():
     assert bpy.ops.curveskel.bind.poll()
     assert bpy.ops.curveskel.bind() == {'FINISHED'}
     check_bound(ob, arm)
-    assert bpy.ops.curveskel.generate('EXEC_DEFAULT', bind=True) == {'FINISHED'}
+    assert bpy.ops.curveskel.generate('EXEC_DEFAULT', bind=True, **FAST) == {'FINISHED'}
     arms = [o for o in bpy.data.objects if o.type == 'ARMATURE']
     sils = [o for o in bpy.data.objects if o.name.endswith(".silhouette")]
     assert [a.name for a in arms] == ["Leg.skeleton"] and [s.name for s in sils] == ["Leg.silhouette"]
@@ -312,12 +312,20 @@ def test_symmetric_mesh_gets_mirrored_left_right_pairs():
     flip = [paired.index(bpy.utils.flip_name(n)) for n in paired]
     on_pairs = Wp.sum(axis=1) > 1 - 1e-6
     # the weights are mirrored on the arms up to the surface smoothing, which follows the
-    # triangulation (not mirror-symmetric); away from the junction, where a skeleton may
-    # branch differently left and right
+    # triangulation (not mirror-symmetric: the tubes' quads are split the same way along +x);
+    # away from the junction, where a skeleton may branch differently left and right. Where
+    # the bones' blend zones fall on the hands, the smoothing leaves up to 0.15 of a weight
+    # unmirrored on 6 % of the arms' vertices (the skeleton of today: 6 bones an arm)
     dw = np.abs(Wp[mirror_of][:, flip] - Wp).max(axis=1)
     mirrored = dw < 0.02
     arms = on_pairs & (np.abs(V[:, 0]) > 1.5)
-    assert mirrored[arms].mean() > 0.98 and dw[arms].max() < 0.25
+    assert mirrored[arms].mean() > 0.9 and dw[arms].max() < 0.25
+    # without the smoothing, the weights of mirrored bones are mirrored exactly
+    bind_mesh(ob, arm, smooth=0.0)
+    W0 = weight_matrix(ob, paired)
+    assert np.abs(W0[mirror_of][:, flip] - W0)[arms].max() < 1e-6
+    bind_mesh(ob, arm)
+    assert np.array_equal(weight_matrix(ob, paired), Wp)
     both = on_pairs & mirrored
     assert both.sum() > 100
     first = min(left, key=lambda nm: bones[nm].head_local.x)         # the chain's first .L bone
@@ -361,7 +369,7 @@ def test_bind_panel_and_menu_offer_every_method():
     ob = mesh_object("L", V, F)
     log = _draw(panel.CURVESKEL_PT_bind, bpy.context)
     assert ("operator", "curveskel.bind") in log and any(e[0] == "label" for e in log)
-    assert bpy.ops.curveskel.generate('EXEC_DEFAULT') == {'FINISHED'}
+    assert bpy.ops.curveskel.generate('EXEC_DEFAULT', **FAST) == {'FINISHED'}
     bpy.context.view_layer.objects.active = ob
     log = _draw(panel.CURVESKEL_PT_bind, bpy.context)
     assert {e[2] for e in log if e[0] == "opset" and e[1] == "method"} == {m[0] for m in METHOD_ITEMS}
@@ -384,43 +392,8 @@ def test_bind_panel_and_menu_offer_every_method():
 
 
 # -- glTF -------------------------------------------------------------------------------------------
-_VALIDATE_JS = """
-const validator = require('gltf-validator');
-const fs = require('fs');
-validator.validateBytes(new Uint8Array(fs.readFileSync(process.argv[1])))
-  .then(r => { console.log(JSON.stringify(r.issues)); })
-  .catch(e => { console.error(String(e)); process.exit(2); });
-"""
-
-
-def _validator_dir():
-    """A folder whose node_modules holds gltf-validator (installed once into the temp folder),
-    or None when node/npm are missing or the install fails."""
-    if shutil.which("node") is None:
-        return None
-    for d in filter(None, [os.environ.get("CURVESKEL_GLTF_VALIDATOR"),
-                           os.path.join(tempfile.gettempdir(), "curveskel-tools")]):
-        if (Path(d) / "node_modules" / "gltf-validator").is_dir():
-            return d
-    if shutil.which("npm") is None:
-        return None
-    d = os.path.join(tempfile.gettempdir(), "curveskel-tools")
-    os.makedirs(d, exist_ok=True)
-    try:
-        subprocess.run(["npm", "install", "--prefix", d, "--no-audit", "--no-fund", "gltf-validator"],
-                       capture_output=True, timeout=180, check=True)
-    except (subprocess.SubprocessError, OSError):
-        return None
-    return d if (Path(d) / "node_modules" / "gltf-validator").is_dir() else None
-
-
 def _glb_json(path):
-    data = Path(path).read_bytes()
-    magic, _, _ = struct.unpack_from("<4sII", data, 0)
-    assert magic == b"glTF"
-    length, kind = struct.unpack_from("<I4s", data, 12)
-    assert kind == b"JSON"
-    return json.loads(data[20:20 + length])
+    return read_glb(Path(path).read_bytes())[0]
 
 
 def test_glb_passes_the_khronos_validator_and_holds_mesh_and_armature_only(tmp_path):
@@ -430,20 +403,17 @@ def test_glb_passes_the_khronos_validator_and_holds_mesh_and_armature_only(tmp_p
     extra.select_set(True)
     path = tmp_path / "star.glb"
     export_rig(bpy.context, ob, arm, path)
-    assert ob.parent is None
+    assert ob.parent is arm                                      # as the bind left it
     doc = _glb_json(path)
     assert len(doc["meshes"]) == 1 and len(doc["skins"]) == 1
     assert len(doc["nodes"]) == len(arm.data.bones) + 2            # bones, armature, mesh
     skinned = [n for n in doc["nodes"] if "skin" in n]
     roots = set(doc["scenes"][0]["nodes"])
     assert len(skinned) == 1 and doc["nodes"].index(skinned[0]) in roots   # a root node
-    d = _validator_dir()
-    if d is None:
-        pytest.skip("node or the npm package gltf-validator is not available")
-    res = subprocess.run(["node", "-e", _VALIDATE_JS, str(path)], capture_output=True, text=True,
-                         env={**os.environ, "NODE_PATH": str(Path(d) / "node_modules")}, timeout=120)
-    assert res.returncode == 0, res.stderr
-    issues = json.loads(res.stdout)
+    pkg, why = gltf_validator.validator()
+    if pkg is None:
+        pytest.skip(why)
+    issues = gltf_validator.validate(path)["issues"]
     assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, issues["messages"]
     # re-imported (without the importer's own bone-shape helper): the mesh and the armature
     bpy.ops.wm.read_homefile(use_empty=True)

@@ -136,8 +136,8 @@ def test_dask_local_cluster_gives_the_pools_outputs_and_report(dask_run, pool_ru
     rows = _check_full_run(r, out, library, reference)
     assert "Dask local:2: 2 workers" in r.stdout
     pool_rows = read_rows(pool_run[1])
-    same = ("path", "status", "reason", "sha256", "vertices", "faces", "joints", "bones", "E0",
-            "E_fit", "E", "iterations", "skeleton_sha256", "outputs")
+    same = ("path", "status", "reason", "sha256", "vertices", "faces", "joints", "bones", "J0",
+            "J", "E0", "E", "iterations", "skeleton_sha256", "outputs")
     assert [{k: row[k] for k in same} for row in rows] == [{k: row[k] for k in same} for row in pool_rows]
 
 
