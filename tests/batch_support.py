@@ -2,11 +2,14 @@
 
 :func:`make_library` writes 60 meshes in four formats under nested folders: 54 procedural
 variants at several sizes (``meshes.py``'s shapes, trimesh primitives, moved and scaled
-copies), three of ../shared/meshes and three of the held-out meshes; :func:`make_bad` adds
-the three bad inputs (an empty file, a file that crashes its worker and one that hangs, both
-only under the test-hook variable). :func:`reference_digests` runs the single-file command
-line's ``main`` on each file (one BLAS thread, as the batch's workers) and returns the digest
-of each skeleton JSON.
+copies), three of ../shared/meshes and three of the held-out meshes (scripts/bench.py --batch
+runs that library); ``make_library(folder, names=SMALL, real=False)`` writes the tests' few
+coarse ones. The tests and the bench run the method with :data:`METHOD` (a coarse Detail Size:
+the batch machinery, not the skeletons' detail, is under test, and the core takes seconds per
+mesh at the default). :func:`make_bad` adds the three bad inputs (an empty file, a file that
+crashes its worker and one that hangs, both only under the test-hook variable).
+:func:`reference_digests` runs the single-file command line's ``main`` on each file (one BLAS
+thread, as the batch's workers) and returns the digest of each skeleton JSON.
 """
 
 from __future__ import annotations
@@ -30,6 +33,14 @@ BATCH = ROOT / "scripts" / "batch.py"
 ONE_THREAD = {k: "1" for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
 FORMATS = (".obj", ".off", ".ply", ".stl")
 BAD = {"bad/empty.obj": "", "bad/crash.obj": "crash", "bad/hang.obj": "hang"}
+#: the method parameters of the batch tests and the batch bench (SkeletonParams fields), and the
+#: same as command-line options
+METHOD = {"spacing": 0.15}
+METHOD_ARGS = [a for k, v in METHOD.items() for a in ("--" + k.replace("_", "-"), str(v))]
+#: the tests' library: ten small procedural meshes (every format, nested folders)
+SMALL = ("bent/bent-10-arm3", "capsules/capsule-8x8-L3", "capsules/capsule-8x8-L6",
+         "capsules/capsule-12x12-L3", "moved/capsule-00", "moved/capsule-03", "prims/capsule-8",
+         "prims/cylinder-12", "props/box_bar", "props/t_beam")
 
 
 def _trimesh(m):
@@ -81,13 +92,17 @@ def procedural() -> dict:
     return out
 
 
-def make_library(folder: Path) -> list[str]:
-    """Write the 60 meshes under ``folder``; returns their paths relative to it, sorted."""
+def make_library(folder: Path, names=None, real: bool = True) -> list[str]:
+    """Write the 60 meshes under ``folder`` (``names``: only those procedural ones; ``real``:
+    the shared and held-out ones too); returns their paths relative to it, sorted."""
     import trimesh
 
     folder.mkdir(parents=True, exist_ok=True)
     rels = []
-    for i, (name, (V, F)) in enumerate(sorted(procedural().items())):
+    meshes = procedural()
+    if names is not None:
+        meshes = {k: meshes[k] for k in names}
+    for i, (name, (V, F)) in enumerate(sorted(meshes.items())):
         rel = name + FORMATS[i % len(FORMATS)]
         path = folder / rel
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -96,7 +111,7 @@ def make_library(folder: Path) -> list[str]:
         else:
             trimesh.Trimesh(V, F, process=False).export(path)
         rels.append(rel)
-    for src, sub in ((SHARED / "octopus.off", "shared"), (SHARED / "spot.obj", "shared"),
+    for src, sub in () if not real else ((SHARED / "octopus.off", "shared"), (SHARED / "spot.obj", "shared"),
                      (SHARED / "hand.off", "shared"), (HELDOUT / "koala.obj", "heldout"),
                      (HELDOUT / "penguin.obj", "heldout"), (HELDOUT / "quadknot.obj", "heldout")):
         (folder / sub).mkdir(exist_ok=True)
@@ -136,20 +151,21 @@ from curveskel_addon.cli.skeletonize import main
 from curveskel_addon.batch.records import skeleton_digest
 out = {}
 for src, dst in json.loads(sys.stdin.read()):
-    rc = main([src, "--json", dst, "--quiet"])
+    rc = main([src, "--json", dst, "--quiet", *sys.argv[2:]])
     out[src] = skeleton_digest(json.load(open(dst))) if rc == 0 else None
 print(json.dumps(out))
 """
 
 
-def reference_digests(files, tmp: Path, processes: int = 2) -> dict:
+def reference_digests(files, tmp: Path, processes: int = 2, args=METHOD_ARGS) -> dict:
     """``{path: digest}`` of each file's skeleton JSON by ``curveskel skeletonize``'s own
-    ``main`` (one BLAS thread, as the batch's workers), None where it refused. The files are
-    shared among ``processes`` processes, each running ``main`` file after file."""
+    ``main`` with options ``args`` (one BLAS thread, as the batch's workers), None where it
+    refused. The files are shared among ``processes`` processes, each running ``main`` file
+    after file."""
     tmp.mkdir(parents=True, exist_ok=True)
     pairs = [(str(f), str(tmp / f"{i}.json")) for i, f in enumerate(files)]
     env = {**os.environ, **ONE_THREAD}
-    procs = [subprocess.Popen([sys.executable, "-c", _REFERENCE, str(ROOT)], stdin=subprocess.PIPE,
+    procs = [subprocess.Popen([sys.executable, "-c", _REFERENCE, str(ROOT), *args], stdin=subprocess.PIPE,
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
              for _ in range(processes)]
     out = {}

@@ -13,6 +13,8 @@ from curveskel_addon.cli.outputs import incomplete
 ROOT = Path(__file__).resolve().parents[2]
 SHARED = ROOT.parent / "shared" / "meshes"
 ONE_THREAD = {k: "1" for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+#: a coarse Detail Size: the rig outputs and the workers' restarts are under test, not the detail
+METHOD = {"spacing": 0.15}
 
 
 def test_batch_rig_outputs_restart_blender_workers_every_k_assets(tmp_path):
@@ -24,7 +26,7 @@ def test_batch_rig_outputs_restart_blender_workers_every_k_assets(tmp_path):
     shutil.copy2(SHARED / "spot.obj", src / "sub" / "spot.obj")
     shutil.copy2(ROOT / "tests" / "data" / "heldout" / "quadknot.obj", src / "quadknot.obj")
     out = tmp_path / "out"
-    res = run(src, out, workers=1, glb=True, blend=True, bind=True, restart_every=2)
+    res = run(src, out, workers=1, glb=True, blend=True, bind=True, restart_every=2, params=METHOD)
     assert [r["status"] for r in res] == ["ok"] * 3, res
     for r in res:
         assert r["outputs"] == [r["path"] + s for s in (".json", ".glb", ".blend")]
@@ -38,12 +40,12 @@ def test_batch_rig_outputs_restart_blender_workers_every_k_assets(tmp_path):
     # the .glb is what `curveskel skeletonize MESH --glb` writes (one BLAS thread, as the workers)
     one = tmp_path / "one.glb"
     r = subprocess.run([sys.executable, str(ROOT / "scripts" / "skeletonize.py"),
-                        str(src / "sub" / "spot.obj"), "--glb", str(one), "--quiet"],
+                        str(src / "sub" / "spot.obj"), "--glb", str(one), "--quiet", "--spacing", "0.15"],
                        capture_output=True, text=True, timeout=600, env={**os.environ, **ONE_THREAD})
     assert r.returncode == 0, r.stderr
     assert one.read_bytes() == (out / "sub" / "spot.obj.glb").read_bytes()
     # a rerun reuses the three assets (their .glb and .blend unchanged)
-    again = run(src, out, workers=1, glb=True, blend=True, bind=True)
+    again = run(src, out, workers=1, glb=True, blend=True, bind=True, params=METHOD)
     assert [r["reused"] for r in again] == [True] * 3
     rec = json.loads((out / ".curveskel-batch" / "records" / "sub" / "spot.obj.json").read_text())
     assert sorted(rec["outputs"]) == ["blend", "glb", "json"]

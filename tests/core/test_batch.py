@@ -1,11 +1,14 @@
-"""Issue 32: ``curveskel batch`` over a library of 60 generated meshes and 3 bad inputs, on the
-process pool and on a 2-worker Dask LocalCluster; against the single-file command line.
+"""Issue 32: ``curveskel batch`` over a library of 10 small generated meshes (every format,
+nested folders) and 3 bad inputs, on the process pool and on a 2-worker Dask LocalCluster;
+against the single-file command line. The method runs with a coarse Detail Size
+(``batch_support.METHOD``) to keep the runs short; the 60-mesh library (shared, held-out and
+procedural meshes) is scripts/bench.py --batch's.
 
 The expensive runs are module fixtures, each done once: the reference (``curveskel
 skeletonize``'s ``main`` per file, one BLAS thread as the batch's workers), the pool run and
 the Dask run of the whole library (the crash and hang inputs armed by the test-hook variable).
-No assertion on time: the limits are set far above what a normal asset takes (12 s against
-the slowest asset's ~1 s here) and only the hanging file reaches them.
+No assertion on time: the limits are set far above what a normal asset takes (20 s against
+the slowest asset's few seconds here) and only the hanging file reaches them.
 """
 
 from __future__ import annotations
@@ -19,24 +22,26 @@ import threading
 import time
 from pathlib import Path
 
+import distributed
 import pytest
 
-from batch_support import (BATCH, ONE_THREAD, make_bad, make_library, read_rows, reference_digests,
-                           run_batch, temp_files)
+from batch_support import (BATCH, METHOD, METHOD_ARGS, ONE_THREAD, SMALL, make_bad, make_library,
+                           read_rows, reference_digests, run_batch, temp_files)
 from curveskel_addon.batch.records import skeleton_digest
 from curveskel_addon.batch.task import TEST_HOOKS_ENV
 
 HOOKS = {TEST_HOOKS_ENV: "1"}
-TIMEOUT = 12                  # seconds; an asset here takes ~1 s at most, the hang forever
+TIMEOUT = 20                  # seconds; an asset here takes a few seconds at most, the hang forever
+N = len(SMALL)                # the good meshes
 
 
 @pytest.fixture(scope="module")
 def library(tmp_path_factory):
-    """``lib/good/...`` (60 meshes) and ``lib/bad/`` (3 bad inputs); absolute paths."""
+    """``lib/good/...`` (10 meshes) and ``lib/bad/`` (3 bad inputs); absolute paths."""
     lib = tmp_path_factory.mktemp("batch") / "lib"
-    good = [lib / "good" / r for r in make_library(lib / "good")]
+    good = [lib / "good" / r for r in make_library(lib / "good", names=SMALL, real=False)]
     bad = [lib / r for r in make_bad(lib)]
-    assert len(good) == 60 and len({p.suffix for p in good}) == 4
+    assert len(good) == N and len({p.suffix for p in good}) == 4
     return lib, good, bad
 
 
@@ -53,16 +58,16 @@ def reference(library, tmp_path_factory):
 def pool_run(library, tmp_path_factory):
     lib, _, _ = library
     out = tmp_path_factory.mktemp("pool") / "out"
-    r = run_batch(lib, "--out", out, "--workers", 2, "--timeout", TIMEOUT, env=HOOKS)
+    r = run_batch(lib, "--out", out, "--workers", 2, "--timeout", TIMEOUT, *METHOD_ARGS, env=HOOKS)
     return r, out
 
 
 @pytest.fixture(scope="module")
 def dask_run(library, tmp_path_factory):
-    pytest.importorskip("distributed")
     lib, _, _ = library
     out = tmp_path_factory.mktemp("dask") / "out"
-    r = run_batch(lib, "--out", out, "--dask", "local:2", "--timeout", TIMEOUT, env=HOOKS)
+    r = run_batch(lib, "--out", out, "--dask", "local:2", "--timeout", TIMEOUT, *METHOD_ARGS,
+                  env=HOOKS)
     return r, out
 
 
@@ -112,11 +117,12 @@ def _check_full_run(r, out, library, reference):
     assert [int(t["joints"]) for t in table if t["status"] == "ok"] == \
            [row["joints"] for row in rows if row["status"] == "ok"]
     # the summary: counts per status, slowest, refusals by reason
-    assert "63 of 63 assets" in r.stdout and "60 ok, 1 refused, 1 timeout, 1 crashed" in r.stdout
+    assert f"{N + 3} of {N + 3} assets" in r.stdout
+    assert f"{N} ok, 1 refused, 1 timeout, 1 crashed" in r.stdout
     assert "refused     1 x FILE contains no vertices (bad/empty.obj)" in r.stdout
     assert "slowest     " in r.stdout and f"results     {out / 'results.jsonl'}" in r.stdout
     # progress on stderr, plain lines in a log (not a terminal)
-    assert "progress    63/63 assets (100 %)" in r.stderr and "/min" in r.stderr
+    assert f"progress    {N + 3}/{N + 3} assets (100 %)" in r.stderr and "/min" in r.stderr
     return rows
 
 
@@ -152,10 +158,10 @@ def test_rerun_computes_nothing_and_keeps_the_table(pool_run, library, tmp_path)
     shutil.copytree(pool_run[1], out)            # copy2: the files' times kept
     before = {p: p.stat().st_mtime_ns for p in out.rglob("*.json")}
     first = {row["path"]: row for row in read_rows(out)}
-    r = run_batch(lib, "--out", out, "--workers", 2, "--quiet")
+    r = run_batch(lib, "--out", out, "--workers", 2, "--quiet", *METHOD_ARGS)
     assert r.returncode == 1 and r.stdout == "" and r.stderr == ""   # 1: empty.obj is refused
     rows = read_rows(out)
-    assert len(rows) == 63
+    assert len(rows) == N + 3
     for row in rows:
         if first[row["path"]]["status"] in ("ok", "refused"):
             assert row["reused"] is True, row["path"]
@@ -173,12 +179,12 @@ def test_one_worker_in_another_order_gives_the_same_skeletons(library, reference
     from curveskel_addon.batch import run
 
     lib, good, _ = library
-    subset = good[::6]
+    subset = good[::3]
     manifest = tmp_path / "list.txt"
     manifest.write_text("# the batch's manifest: a path a line\n\n"
                         + "".join(f"{os.path.relpath(p, tmp_path)}\n" for p in reversed(subset[1:])))
     res = run([manifest, str(subset[0].parent / ("*" + subset[0].suffix))], tmp_path / "out",
-              workers=1, timeout=TIMEOUT)
+              workers=1, timeout=TIMEOUT, params=METHOD)
     got = {Path(row["source"]): row["skeleton_sha256"] for row in res}
     assert set(subset) <= set(got)
     assert {p: got[p] for p in subset} == {p: reference[p] for p in subset}
@@ -226,22 +232,22 @@ def _gone(pids) -> bool:
 
 @pytest.mark.parametrize("how", ["SIGKILL", "SIGINT"])
 def test_interrupted_halfway_then_rerun_computes_each_asset_once(how, library, reference, tmp_path):
-    """Killed (SIGKILL: no clean-up at all; the 60 meshes, stopped once half are written) or
-    interrupted (Ctrl-C; 24 of them named by a manifest, stopped at a third), then run again:
+    """Killed (SIGKILL: no clean-up at all; the library's folder, stopped once half are written)
+    or interrupted (Ctrl-C; the meshes named by a manifest, stopped at a third), then run again:
     every JSON on disk after the stop is reused as it is, every other asset is computed by the
     second run, none is lost; no temporary file is left."""
     if not Path("/proc").is_dir():
         pytest.skip("needs /proc")
     lib, good, _ = library
     if how == "SIGKILL":
-        inputs, n, stop_at = lib / "good", 60, 30
+        inputs, n, stop_at = lib / "good", N, N // 2
     else:
-        inputs, n, stop_at = tmp_path / "list.txt", 24, 8
-        inputs.write_text("".join(f"{p}\n" for p in good[::5] + good[1::5]))
+        inputs, n, stop_at = tmp_path / "list.txt", N, N // 3
+        inputs.write_text("".join(f"{p}\n" for p in good[::2] + good[1::2]))
         assert len(inputs.read_text().splitlines()) == n
     out = tmp_path / "out"
     cmd = [sys.executable, str(BATCH), str(inputs), "--out", str(out), "--workers", "2",
-           "--timeout", str(TIMEOUT)]
+           "--timeout", str(TIMEOUT), *METHOD_ARGS]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
     jsons = lambda: [p for p in out.rglob("*.json") if ".curveskel-batch" not in p.parts]
@@ -264,7 +270,7 @@ def test_interrupted_halfway_then_rerun_computes_each_asset_once(how, library, r
     else:
         assert proc.returncode == -signal.SIGKILL
 
-    r = run_batch(inputs, "--out", out, "--workers", 2, "--timeout", TIMEOUT)
+    r = run_batch(inputs, "--out", out, "--workers", 2, "--timeout", TIMEOUT, *METHOD_ARGS)
     assert r.returncode == 0, r.stderr[-3000:]
     rows = read_rows(out)
     assert len(rows) == n and all(row["status"] == "ok" for row in rows)
@@ -277,11 +283,10 @@ def test_interrupted_halfway_then_rerun_computes_each_asset_once(how, library, r
 
 
 def test_a_dask_worker_killed_mid_batch_has_its_task_retried_elsewhere(library, reference, tmp_path):
-    distributed = pytest.importorskip("distributed")
     from curveskel_addon.batch import run
 
     lib, good, _ = library
-    subset = good[:16]
+    subset = good
     out = tmp_path / "out"
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster, \
@@ -291,7 +296,7 @@ def test_a_dask_worker_killed_mid_batch_has_its_task_retried_elsewhere(library, 
 
         def batch():
             try:
-                result.append(run(subset, out, client=client, timeout=TIMEOUT))
+                result.append(run(subset, out, client=client, timeout=TIMEOUT, params=METHOD))
             except BaseException as exc:   # shown by the assertion below
                 error.append(exc)
 
@@ -325,7 +330,8 @@ def test_memory_limit_kills_a_runaway_and_the_rest_runs(library, tmp_path, monke
     # comment lines make it the largest file: it runs first, the good one after on a new worker
     hog.write_text("# curveskel-batch-test: memory\n" + "# padding\n" * 100_000 + body)
     monkeypatch.setenv(TEST_HOOKS_ENV, "1")
-    res = run([hog, good[0]], tmp_path / "out", workers=1, memory_limit="400M", timeout=TIMEOUT)
+    res = run([hog, good[0]], tmp_path / "out", workers=1, memory_limit="400M", timeout=TIMEOUT,
+              params=METHOD)
     by = {Path(row["source"]).name: row for row in res}
     assert by["hog.obj"]["status"] == "memory"
     assert "memory limit of 400 MiB" in by["hog.obj"]["reason"]
@@ -346,19 +352,19 @@ def test_changed_input_settings_or_output_are_computed_again(library, tmp_path):
         if src / p.name in (a, b, c):
             (src / p.name).write_bytes(p.read_bytes())
     out = tmp_path / "out"
-    first = run(src, out, workers=2)
+    first = run(src, out, workers=2, params=METHOD)
     assert [r["reused"] for r in first] == [False] * 3
-    assert [r["reused"] for r in run(src, out, workers=2)] == [True] * 3
+    assert [r["reused"] for r in run(src, out, workers=2, params=METHOD)] == [True] * 3
     with open(a, "a") as fh:                     # other bytes, the same mesh: computed again
         fh.write("# edited\n")
     (out / (b.name + ".json")).unlink()          # an output removed: computed again
-    again = run(src, out, workers=2)
+    again = run(src, out, workers=2, params=METHOD)
     assert {r["path"]: r["reused"] for r in again} == {a.name: False, b.name: False, c.name: True}
     assert [r["skeleton_sha256"] for r in again] == [r["skeleton_sha256"] for r in first]
     # other settings: everything again, and the outputs follow the settings
-    other = run(src, out, workers=2, params={"spacing": 0.05})
+    other = run(src, out, workers=2, params={"spacing": 0.2})
     assert [r["reused"] for r in other] == [False] * 3
-    assert all(json.loads((out / (r["path"] + ".json")).read_text())["meta"]["params"]["spacing"] == 0.05
+    assert all(json.loads((out / (r["path"] + ".json")).read_text())["meta"]["params"]["spacing"] == 0.2
                for r in other)
 
 
@@ -517,11 +523,11 @@ def test_quality_measures_in_the_json_the_row_and_the_csv(library, tmp_path):
 
     _, good, _ = library
     mesh = next(p for p in good if p.name.startswith("capsule-8x8"))
-    res = run(mesh, tmp_path / "out", workers=1, quality=True)
+    res = run(mesh, tmp_path / "out", workers=1, quality=True, params=METHOD)
     (row,) = res
     one = tmp_path / "one.json"
     r = subprocess.run([sys.executable, str(BATCH.parent / "skeletonize.py"), str(mesh), "--quality",
-                        "--json", str(one), "--quiet"], capture_output=True, text=True, timeout=300,
+                        "--json", str(one), "--quiet", *METHOD_ARGS], capture_output=True, text=True, timeout=300,
                        env={**os.environ, **ONE_THREAD})
     assert r.returncode == 0, r.stderr
     doc = json.loads(one.read_text())
