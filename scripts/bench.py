@@ -1044,38 +1044,35 @@ def run_command(args) -> None:
 
 
 
-# -- batch throughput (issue 32) ----------------------------------------------------------------
+# -- batch (issue 32) ---------------------------------------------------------------------------
 #: tiny tasks for the per-task overhead: empty files, refused as soon as they are read
 OVERHEAD_TASKS = 300
-#: a turn is discarded when other processes took more CPU than this share of its wall time
-#: (of one core), and measured again, at most BUSY_TURNS_MAX times
-BUSY_SHARE = 0.05
-BUSY_TURNS_MAX = 12
+#: the throughput library: this many of tests/batch_support's procedural meshes (several shapes,
+#: sizes, formats), every configuration on the same files
+THROUGHPUT_MESHES = 24
+#: the library run's time limit per asset (the hanging input reaches it; the slowest real mesh
+#: takes a fraction of it)
+LIBRARY_TIMEOUT = 90.0
 
 
-def _batch_library(folder: Path) -> list[Path]:
-    """The throughput library: the shared meshes, the held-out ones and tests/batch_support's
-    54 procedural variants (several shapes, sizes, formats)."""
-    import shutil
-
+def _batch_support():
     sys.path.insert(0, str(ROOT / "tests"))
     import batch_support
 
-    files = [folder / "good" / r for r in batch_support.make_library(folder / "good")]
-    heldout = sorted((ROOT / "tests" / "data" / "heldout").glob("*.obj"))
-    for src, sub in [*((SHARED / m, "shared") for m in REAL), *((h, "heldout") for h in heldout)]:
-        dst = folder / "good" / sub / src.name    # those batch_support copied are there already
-        dst.parent.mkdir(parents=True, exist_ok=True)
-        if not dst.exists():
-            shutil.copy2(src, dst)
-            files.append(dst)
-    return sorted(set(files))
+    return batch_support
+
+
+def _throughput_library(folder: Path) -> list[Path]:
+    """THROUGHPUT_MESHES procedural meshes, every other one of the sorted 54 (all sizes)."""
+    bs = _batch_support()
+    names = sorted(bs.procedural())[::2][:THROUGHPUT_MESHES]
+    return [folder / r for r in bs.make_library(folder, names=names, real=False)]
 
 
 class OtherLoad:
     """CPU seconds taken by processes outside this one's process tree while it measures
-    (/proc sampled twice a second): a turn of the batch bench is kept only when the machine
-    was left to it. Linux only (elsewhere it reports 0)."""
+    (/proc sampled twice a second): this machine is shared, the figures say how much of it
+    others took. Linux only (elsewhere it reports 0)."""
 
     def __init__(self, interval: float = 0.5):
         import threading
@@ -1143,7 +1140,7 @@ def _batch_once(paths, out: Path, **kw) -> dict:
     shutil.rmtree(out, ignore_errors=True)
     other = OtherLoad()
     t0 = time.perf_counter()
-    res = run(paths, out, timeout=900, **kw)
+    res = run(paths, out, timeout=900, params=_batch_support().METHOD, **kw)
     wall = time.perf_counter() - t0
     other_s = other.stop()
     peaks: dict = {}
@@ -1156,58 +1153,153 @@ def _batch_once(paths, out: Path, **kw) -> dict:
             "digests": {r["path"]: r["skeleton_sha256"] for r in res}}
 
 
+def _jsons(out: Path) -> dict:
+    """{skeleton JSON under out: its mtime_ns} (records and the table left out)."""
+    return {p: p.stat().st_mtime_ns for p in out.rglob("*.json") if ".curveskel-batch" not in p.parts}
+
+
+def _rows(out: Path) -> list[dict]:
+    return [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+
+
+def _library_run(tmp: Path, client) -> dict:
+    """The issue's 60-mesh folder (54 procedural variants, 3 shared, 3 held-out; 4 formats)
+    with the three bad inputs: the single-file command line on each mesh; the pool (2 workers,
+    scripts/batch.py) stopped by Ctrl-C once half the skeletons are written, then run again;
+    a 2-worker Dask LocalCluster; the outputs compared."""
+    import signal
+
+    from curveskel_addon.batch import run
+    from curveskel_addon.batch.records import skeleton_digest
+    from curveskel_addon.batch.task import TEST_HOOKS_ENV
+
+    bs = _batch_support()
+    lib = tmp / "library"
+    good = [lib / "good" / r for r in bs.make_library(lib / "good")]
+    bad = [lib / r for r in bs.make_bad(lib)]
+    n = len(good) + len(bad)
+    t0 = time.perf_counter()
+    ref = {Path(p): d for p, d in bs.reference_digests(good, tmp / "reference").items()}
+    ref_s = time.perf_counter() - t0
+    print(f"[batch] library: {len(good)} meshes + {len(bad)} bad inputs; single-file command "
+          f"line, 2 processes: {ref_s:.0f} s ({sum(d is None for d in ref.values())} refused)", flush=True)
+    digest = lambda out, rows: {Path(r["source"]): skeleton_digest(json.loads((out / (r["path"] + ".json")).read_text()))
+                                for r in rows if r["status"] == "ok"}
+    # the meshes the single-file command line fails on: the batch must fail on the same ones
+    failed = sorted(p.relative_to(lib).as_posix() for p, d in ref.items() if d is None)
+    ref = {p: d for p, d in ref.items() if d is not None}
+    not_ok = lambda rows: sorted(r["path"] for r in rows if r["status"] != "ok" and r["path"] not in bs.BAD)
+    # the pool, interrupted halfway (Ctrl-C), then run again
+    out = tmp / "library-pool"
+    env = {**os.environ, TEST_HOOKS_ENV: "1"}
+    cmd = [sys.executable, str(ROOT / "scripts" / "batch.py"), str(lib), "--out", str(out),
+           "--workers", "2", "--timeout", str(LIBRARY_TIMEOUT), "--quiet", *bs.METHOD_ARGS]
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    while len(_jsons(out) if out.exists() else {}) < len(good) // 2 and proc.poll() is None:
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    _, err1 = proc.communicate(timeout=300)
+    first_s = time.perf_counter() - t0
+    written = _jsons(out)
+    first_rows = _rows(out)
+    t0 = time.perf_counter()
+    r2 = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=3600)
+    second_s = time.perf_counter() - t0
+    rows = _rows(out)
+    by = {r["path"]: r for r in rows}
+    reused = {out / (r["path"] + ".json") for r in rows if r["reused"] and r["status"] == "ok"}
+    computed_again = [r["path"] for r in rows if r["status"] == "ok" and not r["reused"]
+                      and out / (r["path"] + ".json") in written]
+    pool = {"first_rc": proc.returncode, "first_s": first_s, "written_at_stop": len(written),
+            "first_rows": len(first_rows), "second_rc": r2.returncode, "second_s": second_s,
+            "rows": len(rows), "statuses": _counts(rows), "reused": len(reused),
+            "reused_equals_written": reused == set(written),
+            "untouched": {p: p.stat().st_mtime_ns for p in written} == written,
+            "computed_twice": computed_again,
+            "bad": {k: [by[k]["status"], by[k]["reason"]] for k in bs.BAD},
+            "temp_files": bs.temp_files(out),
+            "identical_to_cli": digest(out, rows) == ref and not_ok(rows) == failed,
+            "not_ok": {r["path"]: [r["status"], r["reason"]] for r in rows
+                       if r["status"] != "ok" and r["path"] not in bs.BAD}}
+    print(f"[batch] pool: stopped after {first_s:.0f} s with {len(written)} written (rc "
+          f"{proc.returncode}), rerun {second_s:.0f} s (rc {r2.returncode}): {pool['statuses']}, "
+          f"{len(reused)} reused, computed twice {computed_again}, identical {pool['identical_to_cli']}",
+          flush=True)
+    # a 2-worker Dask LocalCluster (the same client the throughput runs use)
+    dout = tmp / "library-dask"
+    t0 = time.perf_counter()        # the hooks: set before the cluster started (run_batch_bench)
+    res = run(lib, dout, client=client, timeout=LIBRARY_TIMEOUT, params=bs.METHOD, progress=False)
+    dask_s = time.perf_counter() - t0
+    dask = {"s": dask_s, "rows": len(res), "statuses": res.counts(),
+            "bad": {k: [r["status"], r["reason"]] for r in res for k in bs.BAD if r["path"] == k},
+            "identical_to_cli": digest(dout, res) == ref and not_ok(res) == failed,
+            "identical_to_pool": [{k: r[k] for k in ("path", "status", "skeleton_sha256")} for r in res]
+                                 == [{k: r[k] for k in ("path", "status", "skeleton_sha256")} for r in rows]}
+    print(f"[batch] dask local:2: {dask_s:.0f} s, {dask['statuses']}, identical to the command "
+          f"line {dask['identical_to_cli']}, to the pool {dask['identical_to_pool']}", flush=True)
+    return {"meshes": len(good), "assets": n, "reference_s": ref_s, "pool": pool, "dask": dask,
+            "cli_failed": failed,
+            "stderr_first": err1[-500:], "stderr_second": r2.stderr[-500:]}
+
+
+def _counts(rows) -> dict:
+    out: dict = {}
+    for r in rows:
+        out[r["status"]] = out.get(r["status"], 0) + 1
+    return out
+
+
 def run_batch_bench(args) -> None:
-    """Assets per minute with 1 and 2 pool workers and on a 2-worker Dask LocalCluster, taking
-    turns ``--repeat`` times in one run (medians); per-worker peak memory; Dask's overhead per
-    task against the pool, on the library and on tiny tasks."""
+    """Throughput: assets per minute with 1 and 2 pool workers and on a 2-worker Dask
+    LocalCluster, taking turns ``--repeat`` times (medians); per-worker peak memory; Dask's
+    overhead per task against the pool, on meshes and on tiny tasks. Then the issue's 60-mesh
+    folder (:func:`_library_run`)."""
     import tempfile
 
     from distributed import Client, LocalCluster
 
+    from curveskel_addon.batch.task import TEST_HOOKS_ENV
+
+    bs = _batch_support()
+    # the library's crash and hang inputs work through the test hooks, in every worker process
+    # (the Dask workers' too: set before the cluster starts); other files are not affected
+    os.environ[TEST_HOOKS_ENV] = "1"
     runs: dict = {"pool-1": [], "pool-2": [], "dask-2": [], "tiny-pool-2": [], "tiny-dask-2": []}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        lib = _batch_library(tmp / "lib")
+        lib = _throughput_library(tmp / "lib")
         tiny = []
         (tmp / "tiny").mkdir()
         for i in range(OVERHEAD_TASKS):
             (tmp / "tiny" / f"e{i:03d}.obj").write_text("")
             tiny.append(tmp / "tiny" / f"e{i:03d}.obj")
-        print(f"[batch] {len(lib)} meshes, {OVERHEAD_TASKS} tiny tasks; {max(args.repeat, 1)} turns")
+        turns_n = max(args.repeat, 1)
+        print(f"[batch] {len(lib)} meshes, {OVERHEAD_TASKS} tiny tasks; {turns_n} turns", flush=True)
         t0 = time.perf_counter()
         cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                dashboard_address=None)
         client = Client(cluster)
         start_s = time.perf_counter() - t0
-        discarded = 0
         try:
-            turn = 0
-            while turn < max(args.repeat, 1) and discarded < BUSY_TURNS_MAX:
-                got = {}
+            for turn in range(turns_n):
                 for name, paths, kw in (("pool-1", lib, {"workers": 1}), ("pool-2", lib, {"workers": 2}),
                                         ("dask-2", lib, {"client": client}),
                                         ("tiny-pool-2", tiny, {"workers": 2}),
                                         ("tiny-dask-2", tiny, {"client": client})):
-                    r = got[name] = _batch_once(paths, tmp / "out", **kw)
+                    r = _batch_once(paths, tmp / "out", **kw)
+                    runs[name].append(r)
                     print(f"[batch] turn {turn + 1} {name}: {r['n']} in {r['wall_s']:.1f} s "
                           f"({r['per_min']:.1f}/min) {r['statuses']}; other processes "
                           f"{r['other_cpu_s']:.1f} CPU s", flush=True)
-                busy = [k for k, r in got.items() if r["other_cpu_s"] > BUSY_SHARE * r["wall_s"]]
-                if busy:                         # another process took a core's share: again
-                    discarded += 1
-                    print(f"[batch] turn {turn + 1} discarded: other processes ran during {busy}")
-                    continue
-                for k, r in got.items():
-                    runs[k].append(r)
-                turn += 1
-            if not runs["pool-1"]:
-                sys.exit(f"the machine was never left to the bench ({discarded} turns discarded)")
+            library = None if args.no_library else _library_run(tmp, client)
             dask_rss = client.run(lambda: __import__("resource").getrusage(
                 __import__("resource").RUSAGE_SELF).ru_maxrss / 1024.0)
         finally:
             client.close()
             cluster.close()
     med = {k: statistics.median(r["wall_s"] for r in v) for k, v in runs.items()}
+    other = {k: statistics.median(r["other_cpu_s"] / r["wall_s"] for r in v) for k, v in runs.items()}
     n, nt = runs["pool-1"][0]["n"], runs["tiny-pool-2"][0]["n"]
     rate = {k: 60.0 * (nt if k.startswith("tiny") else n) / med[k] for k in med}
     ratio = med["pool-1"] / med["pool-2"]
@@ -1217,60 +1309,103 @@ def run_batch_bench(args) -> None:
     over_lib = (med["dask-2"] - med["pool-2"]) / n
     over_tiny = (med["tiny-dask-2"] - med["tiny-pool-2"]) / nt
     peak = {k: max(max(r["worker_peak_mb"]) for r in runs[k]) for k in ("pool-1", "pool-2", "dask-2")}
-    # the assets' own seconds, added up: how much two busy cores slow each other down
     work = {k: statistics.median(r["sum_asset_s"] for r in runs[k]) for k in ("pool-1", "pool-2")}
     contention = work["pool-2"] / work["pool-1"]
-    result = {"env": env_line(), "assets": n, "tiny": nt, "runs": runs, "median_s": med,
-              "per_min": rate, "ratio_2_over_1": ratio, "ratio_per_turn": turns,
+    result = {"env": env_line(), "assets": n, "tiny": nt, "method": bs.METHOD, "runs": runs,
+              "median_s": med, "other_cpu_share": other, "per_min": rate,
+              "ratio_2_over_1": ratio, "ratio_per_turn": turns,
               "dask_overhead_per_task_s": over_lib, "dask_overhead_per_tiny_task_s": over_tiny,
               "cluster_start_s": start_s, "dask_worker_process_peak_mb": dask_rss,
               "worker_peak_mb": peak, "identical_outputs": same, "asset_seconds_sum": work,
-              "turns_discarded": discarded,
-              "contention": contention}
+              "contention": contention, "library": library}
     for v in runs.values():
         for r in v:
             r.pop("digests")
     rows = [["pool, 1 worker", f"{med['pool-1']:.1f}", f"{rate['pool-1']:.1f}", "1.00",
-             f"{peak['pool-1']:.0f}"],
+             f"{peak['pool-1']:.0f}", f"{other['pool-1']:.2f}"],
             ["pool, 2 workers", f"{med['pool-2']:.1f}", f"{rate['pool-2']:.1f}", f"{ratio:.2f}",
-             f"{peak['pool-2']:.0f}"],
+             f"{peak['pool-2']:.0f}", f"{other['pool-2']:.2f}"],
             ["Dask LocalCluster, 2 workers", f"{med['dask-2']:.1f}", f"{rate['dask-2']:.1f}",
-             f"{med['pool-1'] / med['dask-2']:.2f}", f"{peak['dask-2']:.0f}"]]
-    table = md_table(["run", "median wall s", "assets/min", "× 1 worker", "worker peak MiB"], rows)
+             f"{med['pool-1'] / med['dask-2']:.2f}", f"{peak['dask-2']:.0f}", f"{other['dask-2']:.2f}"]]
+    table = md_table(["run", "median wall s", "assets/min", "× 1 worker", "worker peak MiB",
+                      "others' cores"], rows)
     target = "met" if ratio >= 1.7 else "**not met**"
-    body = f"""## Batch throughput (issue 32)
+    method = ", ".join(f"--{k.replace('_', '-')} {v}" for k, v in bs.METHOD.items())
+    body = f"""## Batch (issue 32)
 
-Command: `.venv/bin/python scripts/bench.py --batch` — {env_line()}.
+Command: `.venv/bin/python scripts/bench.py --batch --repeat {turns_n}` — {env_line()}.
+Method settings: `{method}` (a coarse Detail Size, as the batch tests; the objective-J core
+takes several seconds per small mesh at the default 0.025, so the default would make this a
+half-hour bench; the batch machinery measured here does not depend on it).
 
-{n} meshes (the 10 shared, the 8 held-out, tests/batch_support.py's 54 procedural variants in
-four formats), default settings, each configuration into a fresh output folder, the three taking
-turns {len(runs["pool-1"])} times in one run; medians. A turn during which other processes took
-more than {100 * BUSY_SHARE:.0f} % of a core (sampled from /proc) is measured again: {discarded}
-discarded in this run. *worker peak MiB*: the largest peak
-resident size of one batch worker process over the assets it ran (a worker's peak is reset
-before each asset: VmHWM). The same skeletons in every run: {"yes" if same else "**no**"}.
+### Throughput
+
+{n} of tests/batch_support.py's procedural meshes (every other one of the 54: capsules, tori,
+bent capsules, props, trimesh primitives, moved and scaled copies; four formats), each
+configuration into a fresh output folder, the three taking turns ({turns_n} turn{"s" if turns_n > 1 else ""}; medians).
+*worker peak MiB*: the largest peak resident size of one batch worker process over the assets
+it ran (reset before each asset: VmHWM). *others' cores*: the CPU other processes on this
+shared machine took during the run, in cores (from /proc) — the machine was not left to the
+bench, and the figures are lower than on an idle machine by about that. The same skeletons in
+every run: {"yes" if same else "**no**"}.
 
 {table}
 
 Scaling with 2 workers on this {os.cpu_count()}-core machine: **{ratio:.2f}×** (target ≥ 1.7×:
 {target}; per turn {", ".join(f"{t:.2f}" for t in turns)}). The assets' own seconds add up to
-{work['pool-1']:.1f} s with one worker and {work['pool-2']:.1f} s with two ({100 * (contention - 1):+.0f} %: two
-busy cores slow each other, caches and memory bandwidth), so {2 / contention:.2f}× is the most two
-workers can give here; the rest is the last assets' tail. Dask's overhead per task against the
-pool, side by side: {1000 * over_lib:+.0f} ms per asset on this library, {1000 * over_tiny:+.1f} ms
+{work['pool-1']:.1f} s with one worker and {work['pool-2']:.1f} s with two ({100 * (contention - 1):+.0f} %: two busy
+cores, and the other processes, slow each other), so {2 / contention:.2f}× is the most two workers
+could give in this run; the rest is the last assets' tail. Dask's overhead per task against the
+pool, side by side: {1000 * over_lib:+.0f} ms per asset on these meshes, {1000 * over_tiny:+.1f} ms
 per tiny task ({nt} empty files, refused as they are read: pool {rate['tiny-pool-2']:.0f}/min,
 Dask {rate['tiny-dask-2']:.0f}/min); starting the LocalCluster took {start_s:.1f} s (not in the
 walls). The Dask worker processes themselves (each hands its tasks to a batch worker process
 of its own, counted above) peaked at {", ".join(f"{v:.0f}" for v in dask_rss.values())} MiB.
 """
+    if library:
+        body += _library_markdown(library, bs)
     print("\n" + table)
     print(f"asset seconds {work['pool-1']:.1f} / {work['pool-2']:.1f} (x{contention:.2f}); "
           f"ratio {ratio:.2f}; dask overhead {1000 * over_lib:+.0f} ms/asset, {1000 * over_tiny:+.1f} ms/tiny task")
     if not args.no_write:
         OUT.mkdir(exist_ok=True)
-        (OUT / "batch.json").write_text(json.dumps(result, indent=1))
+        (OUT / "batch.json").write_text(json.dumps(result, indent=1, default=str))
         write_section("batch", body)
-        print(f"\nwrote {DOC.relative_to(ROOT)} (batch) and .bench/batch.json")
+        print(f"\nwrote {DOC} (batch) and {OUT / 'batch.json'}")
+
+
+def _library_markdown(L: dict, bs) -> str:
+    p, d = L["pool"], L["dask"]
+    yes = lambda ok: "yes" if ok else "**no**"
+    st = lambda c: ", ".join(f"{v} {k}" for k, v in sorted(c.items(), key=lambda kv: -kv[1]))
+    bad = "; ".join(f"`{k}`: {s} ({reason})" for k, (s, reason) in p["bad"].items())
+    failed = ""
+    if L["cli_failed"]:
+        failed = (f" The single-file command line fails on {len(L['cli_failed'])} of the meshes at "
+                  "these settings, and the batch's rows say the same: "
+                  + "; ".join(f"`{k}`: {st} ({reason})" for k, (st, reason) in p["not_ok"].items())
+                  + " (a fault of the core, not of the batch).")
+    return f"""
+### The 60-mesh folder
+
+{L['meshes']} meshes (tests/batch_support.py's 54 procedural variants at several sizes, 3 of
+../shared/meshes: octopus, spot, hand; 3 held-out: koala, penguin, quadknot; four formats, nested
+folders) and the three bad inputs in `bad/` (an empty file; a file that kills its worker by
+SIGSEGV and one that sleeps forever, both through the test-hook variable), {L['assets']} assets,
+`--timeout {LIBRARY_TIMEOUT:g}`. Reference: the single-file command line's `main` on each mesh
+(`curveskel skeletonize MESH --json OUT`, 2 processes): {L['reference_s']:.0f} s.
+
+| run | wall s | rows | statuses | JSONs identical to the single-file command's |
+|---|---|---|---|---|
+| pool, 2 workers (`scripts/batch.py`), Ctrl-C at half | {p['first_s']:.0f} | {p['first_rows']} | {p['written_at_stop']} skeletons written at the stop, exit {p['first_rc']} | – |
+| the same command again | {p['second_s']:.0f} | {p['rows']} | {st(p['statuses'])} ({p['reused']} reused) | {yes(p['identical_to_cli'])} |
+| Dask LocalCluster, 2 workers (`run(..., client=)`) | {d['s']:.0f} | {d['rows']} | {st(d['statuses'])} | {yes(d['identical_to_cli'])} (rows as the pool's: {yes(d['identical_to_pool'])}) |
+
+Interrupted and run again: the {p['reused']} skeletons reused are exactly the
+{p['written_at_stop']} on disk at the stop ({yes(p['reused_equals_written'])}), none of them
+rewritten ({yes(p['untouched'])}), none computed twice ({yes(not p['computed_twice'])}),
+no temporary file left ({yes(not p['temp_files'])}). The bad inputs' rows: {bad}.{failed}
+"""
 
 
 def main(argv=None) -> None:
@@ -1279,8 +1414,12 @@ def main(argv=None) -> None:
     ap.add_argument("--command", action="store_true",
                     help="whole command on a ~90k-vertex OBJ against skeletor's wavefront (issue 11)")
     ap.add_argument("--batch", action="store_true",
-                    help="batch throughput (issue 32): 1 and 2 workers, a 2-worker Dask "
-                         "LocalCluster, Dask's overhead per task; --repeat turns")
+                    help="batch (issue 32): throughput with 1 and 2 workers and a 2-worker Dask "
+                         "LocalCluster, Dask's overhead per task (--repeat turns); then the "
+                         "60-mesh folder: pool interrupted and rerun, Dask, against the "
+                         "single-file command line")
+    ap.add_argument("--no-library", action="store_true",
+                    help="--batch: throughput only, not the 60-mesh folder")
     ap.add_argument("--figures", action="store_true",
                     help="only docs/figures/skeletons.png: default skeleton of each shared mesh "
                          "over its reference (also drawn by --quality)")
