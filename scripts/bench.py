@@ -1150,7 +1150,8 @@ def _batch_once(paths, out: Path, **kw) -> dict:
     return {"wall_s": wall, "n": len(res), "per_min": 60.0 * len(res) / wall, "other_cpu_s": other_s,
             "statuses": res.counts(), "worker_peak_mb": sorted(peaks.values(), reverse=True),
             "sum_asset_s": sum(r["seconds"] or 0.0 for r in res),
-            "digests": {r["path"]: r["skeleton_sha256"] for r in res}}
+            "digests": {r["path"]: r["skeleton_sha256"] for r in res},
+            "not_ok": {r["path"]: f"{r['status']}: {r['reason']}" for r in res if r["status"] != "ok"}}
 
 
 def _jsons(out: Path) -> dict:
@@ -1347,7 +1348,7 @@ configuration into a fresh output folder, the three taking turns ({turns_n} turn
 it ran (reset before each asset: VmHWM). *others' cores*: the CPU other processes on this
 shared machine took during the run, in cores (from /proc) — the machine was not left to the
 bench, and the figures are lower than on an idle machine by about that. The same skeletons in
-every run: {"yes" if same else "**no**"}.
+every run: {"yes" if same else "**no**"}.{_not_ok_text(runs["pool-1"][0]["not_ok"], n)}
 
 {table}
 
@@ -1372,6 +1373,14 @@ of its own, counted above) peaked at {", ".join(f"{v:.0f}" for v in dask_rss.val
         (OUT / "batch.json").write_text(json.dumps(result, indent=1, default=str))
         write_section("batch", body)
         print(f"\nwrote {DOC} (batch) and {OUT / 'batch.json'}")
+
+
+def _not_ok_text(not_ok: dict, n: int) -> str:
+    if not not_ok:
+        return ""
+    return (f" {len(not_ok)} of the {n} not ok, in every run (a fault of the core at these "
+            "settings, the same with the single-file command line): "
+            + "; ".join(f"`{k}` {v}" for k, v in not_ok.items()) + ".")
 
 
 def _library_markdown(L: dict, bs) -> str:
