@@ -92,7 +92,8 @@ def run_dask(jobs, client, *, limits: Limits, out: str, on_row) -> int:
     CurveSkelError
         A worker cannot import curveskel or does not see the output folder.
     KeyboardInterrupt
-        After the tasks are cancelled and the running ones' worker processes killed.
+        After the running tasks' worker processes are killed and the tasks cancelled; the
+        rows of the tasks that had finished (their files are written) go to ``on_row`` first.
     """
     from distributed import as_completed
 
@@ -105,8 +106,10 @@ def run_dask(jobs, client, *, limits: Limits, out: str, on_row) -> int:
     futures = client.map(dask_task, jobs, limits=limits, token=token, key=keys, pure=False,
                          retries=1)
     n_workers = len(client.scheduler_info().get("workers", {}))
+    reported: set = set()
     try:
         for fut in as_completed(futures):
+            reported.add(fut.key)
             job = by_key[fut.key]
             try:
                 row = fut.result()
@@ -118,11 +121,12 @@ def run_dask(jobs, client, *, limits: Limits, out: str, on_row) -> int:
             if row is not None:
                 on_row(row)
     except BaseException:
-        client.cancel(futures)
         try:
             client.run(_stop_batch, token)       # running tasks: kill their worker processes
         except Exception:
             pass
+        _drain(futures, reported, on_row)
+        client.cancel(futures)
         raise
     finally:
         try:
@@ -130,6 +134,27 @@ def run_dask(jobs, client, *, limits: Limits, out: str, on_row) -> int:
         except Exception:
             pass
     return n_workers
+
+
+def _drain(futures, reported: set, on_row, wait_s: float = 2.0) -> None:
+    """On a stop: the rows of the tasks that finished but were not reported yet (their outputs
+    are written; the table must say so). The batch's stop event is set, so a task still running
+    or waiting returns None at once (its worker killed); they are given ``wait_s`` seconds."""
+    from distributed import wait
+
+    try:
+        wait(futures, timeout=wait_s)
+    except BaseException:   # timed out, or a second Ctrl-C: take what has finished
+        pass
+    for fut in futures:
+        if fut.key in reported or fut.status != "finished":
+            continue
+        try:
+            row = fut.result(timeout=1)
+        except BaseException:
+            continue
+        if row is not None:
+            on_row(row)
 
 
 def dask_task(job, limits: Limits, token: str):

@@ -172,6 +172,7 @@ def run(paths, out, *, workers: int | None = None, client=None, params=None,
     with _Lock(out):
         _sweep_temps(out, jobs)                  # left by a batch killed before (SIGKILL)
         how = ""
+        started_ns = time.time_ns()
         try:
             if client is None:
                 from .pool import run_pool
@@ -192,6 +193,7 @@ def run(paths, out, *, workers: int | None = None, client=None, params=None,
                         _close(dask_client)
         except KeyboardInterrupt as exc:
             results.interrupted = True
+            _written_meanwhile(results, jobs, started_ns)
             _finish(results, found, t0, how, bar)
             raise BatchInterrupted(results, getattr(exc, "signum", None)) from None
         finally:
@@ -199,6 +201,31 @@ def run(paths, out, *, workers: int | None = None, client=None, params=None,
             _sweep_temps(out, jobs)
         _finish(results, found, t0, how, bar)
     return results
+
+
+def _written_meanwhile(results: Results, jobs, since_ns: int) -> None:
+    """On a stop: an asset whose skeleton JSON this batch wrote but whose row had not come back
+    (its worker finished as the stop came, or its Dask task was cancelled with its result) gets
+    the row its record holds, so the table names every file the batch wrote."""
+    from .records import file_sha256, read_record, record_path, reusable
+    from .task import new_row
+
+    have = {r["path"] for r in results}
+    for job in jobs:
+        if job.rel in have:
+            continue
+        try:
+            if output_paths(job.out, job.rel, ["json"])["json"].stat().st_mtime_ns < since_ns:
+                continue                         # not written by this batch (or not at all)
+            sha256 = file_sha256(job.source)
+        except OSError:
+            continue
+        rec = read_record(record_path(job.out, job.rel))
+        if rec is not None and reusable(rec, sha256, job.key, job.out, job.rel):
+            row = new_row(job, sha256)
+            row.update(rec["row"])
+            row.update(source=job.source)
+            results.append(row)
 
 
 def _finish(results: Results, found, t0: float, how: str, bar) -> None:

@@ -264,7 +264,7 @@ def test_interrupted_halfway_then_rerun_computes_each_asset_once(how, library, r
         assert proc.returncode == 130 and "interrupted" in stderr and "Traceback" not in stderr
         done = read_rows(out)                    # the table of what was done is written
         assert len(done) >= stop_at - 2 and all(row["status"] == "ok" for row in done)
-        assert {out / (row["path"] + ".json") for row in done} <= set(written)
+        assert {out / (row["path"] + ".json") for row in done} == set(written)   # a row each
         assert f"of {n} assets" in stdout and "assets not run" in stdout
         assert temp_files(out) == []
     else:
@@ -318,6 +318,53 @@ def test_a_dask_worker_killed_mid_batch_has_its_task_retried_elsewhere(library, 
     assert _json_digests(out, res) == {p: reference[p] for p in subset}
     assert read_rows(out) == list(res)
     assert temp_files(out) == []
+
+
+class _StopAfterAWhile:
+    """A progress stream that, at its first line, waits ``seconds`` (the cluster goes on
+    finishing assets meanwhile) and then raises KeyboardInterrupt: Ctrl-C with rows finished
+    but not yet taken from the cluster."""
+
+    def __init__(self, seconds: float):
+        self.seconds, self.fired = seconds, False
+
+    def isatty(self) -> bool:
+        return False
+
+    def write(self, text: str) -> None:
+        if not self.fired:
+            self.fired = True
+            time.sleep(self.seconds)
+            raise KeyboardInterrupt
+
+    def flush(self) -> None:
+        pass
+
+
+def test_a_dask_batch_stopped_keeps_a_row_for_every_skeleton_written(library, reference, tmp_path):
+    """Ctrl-C on Dask: the tasks that finished while the batch was stopping have their rows in
+    the table (their files are on disk), the running ones are stopped; nothing is half-written
+    and a rerun reuses exactly what was written."""
+    from curveskel_addon.batch import BatchInterrupted, run
+
+    _, good, _ = library
+    out = tmp_path / "out"
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        with pytest.raises(BatchInterrupted) as info:
+            run(good, out, client=client, timeout=TIMEOUT, params=METHOD, progress=True,
+                stream=_StopAfterAWhile(5.0))
+    done = info.value.results
+    written = {p: p.stat().st_mtime_ns for p in out.rglob("*.json") if ".curveskel-batch" not in p.parts}
+    assert len(written) >= 2 and len(done) < N             # more than the first row, not all
+    assert {out / (row["path"] + ".json") for row in done} == set(written)
+    assert all(row["status"] == "ok" for row in done) and read_rows(out) == list(done)
+    assert temp_files(out) == []
+    again = run(good, out, workers=2, timeout=TIMEOUT, params=METHOD)
+    assert {out / (row["path"] + ".json") for row in again if row["reused"]} == set(written)
+    assert {p: p.stat().st_mtime_ns for p in written} == written
+    assert _json_digests(out, again) == {p: reference[p] for p in good}
 
 
 def test_memory_limit_kills_a_runaway_and_the_rest_runs(library, tmp_path, monkeypatch):
