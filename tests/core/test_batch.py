@@ -574,8 +574,8 @@ def test_quality_measures_in_the_json_the_row_and_the_csv(library, tmp_path):
     (row,) = res
     one = tmp_path / "one.json"
     r = subprocess.run([sys.executable, str(BATCH.parent / "skeletonize.py"), str(mesh), "--quality",
-                        "--json", str(one), "--quiet", *METHOD_ARGS], capture_output=True, text=True, timeout=300,
-                       env={**os.environ, **ONE_THREAD})
+                        "--json", str(one), "--quiet", *METHOD_ARGS], capture_output=True, text=True,
+                       timeout=300, env={**os.environ, **ONE_THREAD})
     assert r.returncode == 0, r.stderr
     doc = json.loads(one.read_text())
     assert row["skeleton_sha256"] == skeleton_digest(doc)
