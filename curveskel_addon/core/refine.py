@@ -99,10 +99,8 @@ class Refinement:
         self.edit_topology = bool(edit_topology)
         t0 = time.perf_counter()
         self.fit = fit = prepare(V, F, skeleton, self.params)
-        self.fixed = self._fixed_mask(fixed)
-        if self.edit_topology and self.fixed.any():
-            raise CurveSkelError("fixed joints can only be kept with the skeleton's bones kept "
-                                 "(no topology edits)")
+        self._started = False
+        self.fix(fixed)
         self.graph = fit.graph
         self.evaluation = fit.objective.evaluate(self.graph)
         self.before = report_of(fit, self.graph, self.evaluation)
@@ -112,6 +110,17 @@ class Refinement:
         self.progress("prepare", 1.0)
         self._done = False
         self._finished = None
+
+    def fix(self, fixed) -> None:
+        """Set the joints that keep their positions (as ``fixed`` of the constructor), before
+        the first step (Blender reads some of them, locked bones, only once the input is
+        known to be good)."""
+        if self._started:
+            raise CurveSkelError("the fixed joints are set before the refinement starts")
+        self.fixed = self._fixed_mask(fixed)
+        if self.edit_topology and self.fixed.any():
+            raise CurveSkelError("fixed joints can only be kept with the skeleton's bones kept "
+                                 "(no topology edits)")
 
     def _fixed_mask(self, fixed) -> np.ndarray:
         """(k,) bool over the graph's joints."""
@@ -134,6 +143,7 @@ class Refinement:
     def steps(self) -> Iterator[RunState]:
         """Refine, yielding after every kept step (the last has ``done``)."""
         t0 = time.perf_counter()
+        self._started = True
         try:
             n = 0
             steps = self._topology_steps() if self.edit_topology else self._continuous_steps()

@@ -25,7 +25,10 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-__all__ = ["ArmatureSegments", "armature_segments", "COINCIDENT"]
+# the roll rule of curveskel's own armatures (a private helper of the layout: one rule, one place)
+from .rig_layout import _roll_axes
+
+__all__ = ["ArmatureSegments", "armature_segments", "bone_roll_axes", "COINCIDENT"]
 
 #: Points closer than this share of the armature's extent are one joint (a head placed on a
 #: tail by snapping, or typed, agrees to far better than this; two joints a rigger means apart
@@ -128,3 +131,41 @@ def armature_segments(heads, tails, parent, connected, *, tolerance=COINCIDENT) 
     segment_of_bone[own[own >= 0]] = np.flatnonzero(own >= 0)
     return ArmatureSegments(X, seg, head, tail, segment_of_bone)
 
+
+
+def bone_roll_axes(heads, tails, parent, up) -> np.ndarray:
+    """(nb, 3) each bone's roll (z) axis by the rule curveskel's own armatures follow
+    (:func:`.rig_layout._roll_axes`): a root bone's perpendicular to it and to a fixed
+    reference, a bone hanging from a root's perpendicular to ``up``, any other its parent's
+    carried along the bend. For Blender's ``EditBone.align_roll``.
+
+    Parameters
+    ----------
+    heads, tails : (nb, 3) float
+        In the armature's space.
+    parent : (nb,) int
+        -1 for a root; any order (parents are taken first).
+    up : (3,) float
+        World up in the armature's space.
+    """
+    H = np.asarray(heads, np.float64).reshape(-1, 3)
+    T = np.asarray(tails, np.float64).reshape(-1, 3)
+    par = np.asarray(parent, np.int64).ravel()
+    nb = len(H)
+    depth = np.zeros(nb, np.int64)
+    for b in range(nb):                      # a rig's depth is small; bones, not vertices
+        p, n = par[b], 0
+        while p >= 0 and n <= nb:
+            p, n = par[p], n + 1
+        depth[b] = n
+    order = np.argsort(depth, kind="stable")           # parents before children
+    rank = np.empty(nb, np.int64)
+    rank[order] = np.arange(nb)
+    par_sorted = np.where(par[order] >= 0, rank[np.maximum(par[order], 0)], -1)
+    d = T[order] - H[order]
+    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
+    from_root = (par_sorted >= 0) & (par[np.maximum(par[order], 0)] < 0)
+    z = _roll_axes(d, par_sorted, np.asarray(up, np.float64), from_root)
+    out = np.empty_like(z)
+    out[order] = z
+    return out

@@ -62,3 +62,22 @@ def test_fixed_joints_of_bones():
     tails = [[0, 0, 1], [0, 0, 2], [0, 0, 3]]
     s = armature_segments(heads, tails, [-1, 0, 1], [False, True, True])
     np.testing.assert_array_equal(s.fixed_joints([False, True, False]), [False, True, True, False])
+
+
+def test_roll_axes_are_perpendicular_and_follow_the_chain():
+    """A chain up the z axis bending to +x: every roll axis is a unit vector perpendicular to
+    its bone, and the order the bones are listed in does not change the axes."""
+    from curveskel_addon.rig.armature_segments import bone_roll_axes
+
+    heads = np.array([[0., 0, 0], [0, 0, 1], [0, 0, 2], [0.5, 0, 2.8]])
+    tails = np.array([[0., 0, 1], [0, 0, 2], [0.5, 0, 2.8], [1.5, 0, 3.0]])
+    parent = np.array([-1, 0, 1, 2])
+    z = bone_roll_axes(heads, tails, parent, up=[0, 0, 1])
+    d = (tails - heads) / np.linalg.norm(tails - heads, axis=1, keepdims=True)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", z, d), 0, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(z, axis=1), 1, atol=1e-12)
+    perm = np.array([3, 1, 0, 2])                      # children listed before parents
+    inv = np.argsort(perm)
+    parent_perm = np.where(parent[perm] >= 0, inv[np.maximum(parent[perm], 0)], -1)
+    zp = bone_roll_axes(heads[perm], tails[perm], parent_perm, up=[0, 0, 1])
+    np.testing.assert_allclose(zp, z[perm], atol=1e-12)

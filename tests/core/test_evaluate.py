@@ -277,3 +277,13 @@ def test_params_reach_j(capsule):
     a = evaluate(V, F, sk, SkeletonParams(smoothness=1.0))
     b = evaluate(V, F, sk, SkeletonParams(smoothness=3.0))
     assert b.weighted["smooth"] == pytest.approx(3 * a.weighted["smooth"], rel=1e-9)
+
+
+def test_fixed_joints_set_before_the_first_step(capsule):
+    V, F = capsule
+    run = Refinement(V, F, OFF_AXIS)
+    run.fix([1])
+    res = run.result()
+    np.testing.assert_array_equal(res.skeleton.joints[1, :3], OFF_AXIS["joints"][1])
+    with pytest.raises(CurveSkelError, match="before the refinement starts"):
+        run.fix([0])
