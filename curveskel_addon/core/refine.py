@@ -200,6 +200,13 @@ class Refinement:
         """The skeleton as it stands now."""
         return self._to_skeleton(self.graph)
 
+    def stop(self) -> None:
+        """No more steps: :meth:`result` gives the skeleton reached so far (a live view's Esc;
+        J never rose, so it is the lowest seen)."""
+        self._done = True
+        self.evaluation = self.fit.objective.evaluate(self.graph) if self.edit_topology else \
+            self.evaluation
+
     def result(self) -> RefineResult:
         """Run the remaining steps; the refined skeleton and the reports before and after."""
         if self._finished is None:

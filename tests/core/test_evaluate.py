@@ -287,3 +287,16 @@ def test_fixed_joints_set_before_the_first_step(capsule):
     np.testing.assert_array_equal(res.skeleton.joints[1, :3], OFF_AXIS["joints"][1])
     with pytest.raises(CurveSkelError, match="before the refinement starts"):
         run.fix([0])
+
+
+def test_a_stopped_refinement_keeps_the_joints_reached(capsule):
+    V, F = capsule
+    run = Refinement(V, F, OFF_AXIS, step_iterations=1)
+    steps = run.steps()
+    first = next(steps)
+    steps.close()
+    run.stop()
+    res = run.result()
+    assert res.iterations == 1
+    assert res.after.J == pytest.approx(first.energy) and res.after.J < res.before.J
+    np.testing.assert_array_equal(res.skeleton.joints, run.current_skeleton().joints)
