@@ -22,8 +22,9 @@ Never imports bpy. Arrays in, a :class:`Skeleton` out. The package follows the m
 ``config``, ``params``      every constant of the method; the user's settings
 ``skeleton``, ``errors``    the result and its JSON; the one exception type
 ``skeleton_input``,         any skeleton from outside (CGAL's, an armature, a plain JSON):
-``evaluate``, ``refine``    checked, judged by J (terms, E, per bone, per vertex), its joints
-                            moved to J's minimum with its graph kept
+``evaluation``,             checked, judged by J (terms, E, per bone, per vertex), its joints
+``refinement``              moved to J's minimum with its graph kept (:func:`evaluate`,
+                            :func:`refine`)
 ==========================  ==================================================================
 
 The measures (``curveskel_addon.measure``) and the rig (``curveskel_addon.rig``) sit outside:
@@ -31,10 +32,10 @@ they import the core, the core never imports them.
 """
 
 from .errors import CurveSkelError
-from .evaluate import SkeletonReport, compare, evaluate
+from .evaluation import SkeletonReport, compare, evaluate
 from .params import SOLVERS, SkeletonParams
 from .pipeline import RunState, SkeletonRun, skeletonize
-from .refine import Refinement, RefineResult, refine
+from .refinement import Refinement, RefineResult, refine
 from .skeleton import FORMAT, Skeleton
 from .skeleton_input import OutsideSkeleton, load_outside_skeleton
 

@@ -1,6 +1,6 @@
 """A skeleton from outside curveskel, checked: joints, bones and (when given) radii.
 
-:func:`evaluate` and :func:`refine` (:mod:`.evaluate`, :mod:`.refine`) take any curve-skeleton
+:func:`evaluate` and :func:`refine` (:mod:`.evaluation`, :mod:`.refinement`) take any curve-skeleton
 of a mesh, not only curveskel's own. It may come as
 
 * a :class:`.skeleton.Skeleton` (curveskel's result, or its JSON read back);
@@ -13,7 +13,7 @@ of a mesh, not only curveskel's own. It may come as
 Every defect is one :class:`CurveSkelError` naming it (a bone index out of range, a bone from a
 joint to itself, a bone listed twice, coordinates that are not finite numbers, no bone at all),
 so the command line and Blender can show it as it is. Nothing here is a measure of the shape:
-whether the bones lie in the mesh is decided against the mesh (:mod:`.evaluate`).
+whether the bones lie in the mesh is decided against the mesh (:mod:`.evaluation`).
 """
 
 from __future__ import annotations

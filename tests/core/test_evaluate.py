@@ -13,7 +13,7 @@ import meshes as M
 from curveskel_addon.core import (CurveSkelError, OutsideSkeleton, Refinement, Skeleton,
                                   SkeletonParams, compare, evaluate, load_outside_skeleton,
                                   refine)
-from curveskel_addon.core.evaluate import prepare, report_of
+from curveskel_addon.core.evaluation import prepare, report_of
 
 #: a skeleton on the capsule's axis (radius 1, from z = 0 to 6) and one off it
 ON_AXIS = {"joints": [[0, 0, 0], [0, 0, 3], [0, 0, 6]], "bones": [[0, 1], [1, 2]]}

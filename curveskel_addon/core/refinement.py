@@ -7,7 +7,7 @@ exactly (their radii still fit). With ``edit_topology`` the search's topology mo
 (chain joints merged, branches pruned, junctions split or joined: :mod:`.search`), each kept
 only when J falls; the graph may then change, so ``fixed`` cannot be combined with it.
 
-J is the given skeleton's (:mod:`.evaluate`): its unit of length at each surface sample is the
+J is the given skeleton's (:mod:`.evaluation`): its unit of length at each surface sample is the
 sample's distance from the skeleton as given, held through the refinement, so J before and
 after are values of one function. The result's mapping (every input vertex's bone and ``t``) is
 the pipeline's kind: each vertex on the bones of its region, the bone nearest to it on the given
@@ -25,7 +25,7 @@ from scipy.spatial import cKDTree
 
 from .config import CONFIG
 from .errors import CurveSkelError
-from .evaluate import SkeletonReport, prepare, report_of
+from .evaluation import SkeletonReport, prepare, report_of
 from .geometry.segments import closest_on_bones
 from .graph import candidates_from_pairs
 from .objective.minimise import minimise
