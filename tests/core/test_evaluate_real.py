@@ -8,11 +8,12 @@ import json
 import numpy as np
 import pytest
 
-from curveskel_addon.core import evaluate, load_outside_skeleton, refine
+from curveskel_addon.core import SkeletonParams, evaluate, load_outside_skeleton, refine
 from curveskel_addon.core.geometry.segments import closest_on_bones
 from curveskel_addon.core.graph import SkeletonGraph
 from curveskel_addon.core.moves.topology import leaf_chains
 from curveskel_addon.measure.evaluation import HEAT_RANGE
+from curveskel_addon.measure.quality import shape_measures
 from curveskel_addon.mesh_files import read_mesh
 
 from conftest import SHARED_MESHES
@@ -20,6 +21,41 @@ from conftest import SHARED_MESHES
 REFERENCE = SHARED_MESHES.parent / "reference"
 MESHES = ["armadillo.obj", "horse.off", "elephant.obj", "hand.off", "homer.obj", "spot.obj",
           "octopus.off", "rocker-arm.obj", "3holes.off", "fertility.off"]
+#: Issue 10's shape targets against the reference (distances / D), as scripts/bench.py has them
+TARGETS = {"zigzag": 0.15, "folds": 0.0, "length": (0.85, 1.25), "to_ref": 0.02, "from_ref": 0.025}
+#: Minimisation steps of the refinements here (30 by default: the same figures, 5x the time;
+#: scripts/evaluate_figures.py --cgal runs the default and docs/benchmarks.md has its table)
+STEPS = 5
+
+
+def _marks(m) -> dict:
+    lo, hi = TARGETS["length"]
+    return {"zigzag": m["zigzag"] <= TARGETS["zigzag"], "folds": m["folds"] <= TARGETS["folds"],
+            "length": lo <= m["length_ratio"] <= hi, "to_ref": m["to_ref_mean"] <= TARGETS["to_ref"],
+            "from_ref": m["from_ref_mean"] <= TARGETS["from_ref"]}
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param(n, marks=pytest.mark.xfail(
+        strict=True, reason="J has no term against folds: on fertility's CGAL skeleton the "
+                            "first steps slide chain joints along a neighbouring strand (folds "
+                            "0 -> 0.02-0.06 of the bones; J falls 0.66 -> 0.48 at 3 steps)"))
+    if n == "fertility.off" else n for n in MESHES])
+def test_cgal_skeletons_refined_keep_their_shape(name):
+    """CGAL's curve skeleton of every shared mesh: evaluated, refined with its graph kept; J
+    falls, the topology still matches the genus, and each of issue 10's shape targets against
+    that same reference that held before still holds."""
+    V, F = read_mesh(SHARED_MESHES / name)
+    ref = REFERENCE / (name.rsplit(".", 1)[0] + ".json")
+    sk = load_outside_skeleton(ref)
+    res = refine(V, F, sk, params=SkeletonParams(max_iterations=STEPS))
+    assert res.after.J < res.before.J
+    assert res.before.topology["match"] and res.after.topology["match"]
+    np.testing.assert_array_equal(res.skeleton.bones, sk.bones)
+    assert res.after.inside_fraction >= res.before.inside_fraction - 0.01
+    before = _marks(shape_measures(V, F, (sk.joints, sk.bones), ref))
+    after = _marks(shape_measures(V, F, (res.skeleton.joints, res.skeleton.bones), ref))
+    assert [k for k in before if before[k] and not after[k]] == []
 
 
 def hand_without_a_finger():
