@@ -383,7 +383,7 @@ def _evaluate_case(case: str):
     from curveskel_addon.core import load_outside_skeleton
     from curveskel_addon.mesh_files import read_mesh
     from curveskel_addon.rig.armature_segments import armature_segments
-    from tests.metarig import blender_to_obj, load_metarig, obj_to_blender, place_metarig
+    from tests.outside_skeletons import blender_to_obj, load_metarig, obj_to_blender, place_metarig
 
     name, levels, kind = EVALUATE_CASES[case]
     if name == "human":
@@ -661,7 +661,7 @@ J, E, per bone, per vertex. *full report*: the same plus the reconstruction dist
 skeleton)`, the graph kept, to the final tolerance or `max_iterations` (30). The ~100k meshes
 are `tests/data/heldout/human.obj` and `../shared/meshes/hand.off` refined twice by midpoint
 subdivision (the same surface, 16× the triangles); the metarig is Rigify's Basic Human
-(`tests/data/rigify_basic_human.json`) placed on the human by `tests/metarig.py`, CGAL's is the
+(`tests/data/rigify_basic_human.json`) placed on the human by `tests/outside_skeletons.py`, CGAL's is the
 reference curve skeleton in `../shared/reference`. Targets on ~100k vertices: evaluate < {T['evaluate_s']:g} s,
 refine < {T['refine_s']:g} s (marked).
 

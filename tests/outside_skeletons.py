@@ -1,4 +1,5 @@
-"""A Rigify human metarig placed on a T-posed character, as a rigger places one (issue 33).
+"""Outside skeletons for issue 33's tests and figures: a Rigify human metarig placed on a
+T-posed character as a rigger places one, and the hand's CGAL skeleton without a finger.
 
 Rigify's metarig stands Z up, facing -Y, its arms hanging at about 30 degrees; a rigger scales it
 to the character's height, moves it onto the character and raises its arms to the character's
@@ -19,9 +20,16 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["load_metarig", "place_metarig", "obj_to_blender", "blender_to_obj", "METARIG"]
+from curveskel_addon.core.geometry.segments import closest_on_bones
+from curveskel_addon.core.graph import SkeletonGraph
+from curveskel_addon.core.moves.topology import leaf_chains
+from curveskel_addon.mesh_files import read_mesh
+
+__all__ = ["load_metarig", "place_metarig", "obj_to_blender", "blender_to_obj", "METARIG",
+           "hand_without_a_finger"]
 
 METARIG = Path(__file__).resolve().parent / "data" / "rigify_basic_human.json"
+SHARED = Path(__file__).resolve().parents[2] / "shared"
 
 
 def load_metarig(path=METARIG):
@@ -99,3 +107,26 @@ def place_metarig(names, parent, heads, tails, V):
         H[chain] = (H[chain] - pivot) @ R.T + pivot
         T[chain] = (T[chain] - pivot) @ R.T + pivot
     return scale, offset, H, T
+
+
+def hand_without_a_finger():
+    """The shared hand, CGAL's skeleton of it without the finger whose tip is highest (joints
+    only: radii fitted, as for an armature), the whole skeleton, and which vertices that
+    finger's bones explained (the nearest bone of the whole skeleton is one of them).
+
+    Returns
+    -------
+    V, F, (joints, bones) without the finger, (joints, bones) whole, finger (n,) bool
+    """
+    V, F = read_mesh(SHARED / "meshes" / "hand.off")
+    ref = json.loads((SHARED / "reference" / "hand.json").read_text())
+    J, B = np.array(ref["joints"])[:, :3], np.array(ref["bones"])
+    graph = SkeletonGraph(np.c_[J, np.ones(len(J))], B, np.zeros((0, 2)))
+    fingers = [c for c in leaf_chains(graph) if c[2] >= 0]
+    js, bs, _ = max(fingers, key=lambda c: J[c[0][0], 1])
+    keep_j = np.setdiff1d(np.arange(len(J)), js)
+    keep_b = np.setdiff1d(np.arange(len(B)), bs)
+    renumber = np.full(len(J), -1)
+    renumber[keep_j] = np.arange(len(keep_j))
+    nearest, _, _ = closest_on_bones(V, J, B)
+    return V, F, (J[keep_j], renumber[B[keep_b]]), (J, B), np.isin(nearest, bs)
