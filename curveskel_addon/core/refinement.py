@@ -2,8 +2,8 @@
 
 A rigger's armature, a metarig scaled onto a character, CGAL's curve: :class:`Refinement`
 moves their joints to where J is lowest and fits their radii, keeping every bone (so a Blender
-armature keeps its bones' names, parents and order). Joints in ``fixed`` keep their positions
-exactly (their radii still fit). With ``edit_topology`` the search's topology moves run too
+armature keeps its bones' names, parents and order; no bone shrinks below J's resolution).
+Joints in ``fixed`` keep their positions exactly (their radii still fit). With ``edit_topology`` the search's topology moves run too
 (chain joints merged, branches pruned, junctions split or joined: :mod:`.search`), each kept
 only when J falls; the graph may then change, so ``fixed`` cannot be combined with it.
 
@@ -26,6 +26,7 @@ from scipy.spatial import cKDTree
 from .config import CONFIG
 from .errors import CurveSkelError
 from .evaluation import SkeletonReport, prepare, report_of
+from .geometry.rows import row_norm
 from .geometry.segments import closest_on_bones
 from .graph import candidates_from_pairs
 from .objective.minimise import minimise
@@ -77,8 +78,8 @@ class Refinement:
         ``max_joints`` the topology moves.
     progress : callable(stage, fraction), optional
     step_iterations : int, optional
-        Minimisation steps between two yields of :meth:`steps` (a live view); by default all
-        in one.
+        Minimisation steps between two yields of :meth:`steps` (a live view); by default the
+        search's refit steps.
 
     Examples
     --------
@@ -102,6 +103,14 @@ class Refinement:
         self._started = False
         self.fix(fixed)
         self.graph = fit.graph
+        Z = np.asarray(fit.graph.joints)
+        given = row_norm(Z[fit.graph.bones[:, 0], :3] - Z[fit.graph.bones[:, 1], :3])
+        # the least length of a bone: what the first approximation contracts (half a spacing),
+        # or half its given length if shorter (a dense curve's bones are below J's resolution
+        # and slide along their chains; none may become a point)
+        self.min_length = CONFIG.initial.contract * np.minimum(
+            given, self.params.spacing * fit.objective.D)
+        self.held = np.zeros(fit.graph.n_joints, bool)     # joints the length guard holds
         self.evaluation = fit.objective.evaluate(self.graph)
         self.before = report_of(fit, self.graph, self.evaluation)
         self.log = SearchLog(fit.objective)
@@ -159,29 +168,66 @@ class Refinement:
 
     def _continuous_steps(self):
         """J minimised over the positions of the free joints and every radius, the graph held,
-        until a step no longer lowers J by the final tolerance (as the search's last fit) or
-        ``max_iterations`` steps are spent; with ``step_iterations``, in rounds of that many
-        steps (a live view redraws between them; each round starts its damping afresh, so the
-        path can differ slightly from one run of all steps)."""
+        in rounds of a few steps (``step_iterations``, else the search's refit steps), until a
+        round no longer lowers J by the final tolerance (as the search's last fit) or
+        ``max_iterations`` steps are spent.
+
+        The graph is kept, so no bone may shrink to a point: J cannot see a bone shorter than
+        its resolution (half a spacing, where the first approximation contracts bones), and a
+        turn at a joint costs nothing once one of its bones has no length (a rig's foot bone
+        collapses so that shin and toe run straight, a chest bone so that the shoulders start
+        at the neck). When a round would make a bone shorter than that (or than half its given
+        length, if that is shorter), the joints go only as far along the round's way as keeps
+        every bone long enough (if J is lower there), and the bone that stopped them is held
+        from then on."""
         p = self.params
         tol = CONFIG.search.final_tolerance
         obj = self.fit.objective
         self.log.add("initialise", self.graph, self.evaluation)
         budget = max(p.max_iterations, 1)
+        size = self.step_iterations or CONFIG.search.refit_steps
         while self.iterations < budget:
-            size = budget - self.iterations
-            if self.step_iterations:
-                size = min(size, self.step_iterations)
-            g, ev, it = minimise(obj, self.graph, max_iterations=size, tolerance=tol,
-                                 fixed=self.fixed, evaluation=self.evaluation)
+            n = min(size, budget - self.iterations)
+            g, ev, it = minimise(obj, self.graph, max_iterations=n, tolerance=tol,
+                                 fixed=self.fixed | self.held, evaluation=self.evaluation)
             self.iterations += it
+            stop, binding = self._length_guard(self.graph, g)
+            if len(binding):
+                self.held[np.unique(self.graph.bones[binding])] = True
+                g = self.graph.with_joints((1.0 - stop) * np.asarray(self.graph.joints)
+                                           + stop * np.asarray(g.joints))
+                ev = obj.evaluate(g)
             drop = self.evaluation.value - ev.value
             if drop > 0:
                 self.graph, self.evaluation = g, ev
                 self.log.add("fit", g, ev, iterations=int(it))
                 yield "fit", ev.value
-            if drop <= tol * self.evaluation.value or it < size:
+            if not len(binding) and (drop <= tol * self.evaluation.value or it < n):
                 break
+
+    def _length_guard(self, before, after):
+        """How far (``lam`` in [0, 1]) the joints may go from ``before`` towards ``after``, on
+        the straight way, with every bone at least its least length; and the bones that stop
+        them there (none: all the way)."""
+        X0, X1 = np.asarray(before.joints)[:, :3], np.asarray(after.joints)[:, :3]
+        i, j = before.bones[:, 0], before.bones[:, 1]
+        d0 = X0[i] - X0[j]
+        e = (X1[i] - X1[j]) - d0
+        m2 = self.min_length ** 2
+        # |d0 + lam e|^2 = m^2: a lam^2 + b lam + c = 0, c >= 0 where the bone starts long enough
+        qa = np.einsum("ij,ij->i", e, e)
+        qb = 2.0 * np.einsum("ij,ij->i", d0, e)
+        qc = np.einsum("ij,ij->i", d0, d0) - m2
+        disc = qb * qb - 4.0 * qa * qc
+        with np.errstate(divide="ignore", invalid="ignore"):
+            first = np.where(qc <= 0, 0.0, (-qb - np.sqrt(np.maximum(disc, 0.0))) / (2.0 * qa))
+        # a bone long enough at the start is stopped where it first reaches its least length
+        # (only when it shrinks: qb < 0); one at it already, as soon as it shrinks at all
+        hits = (qb < 0) & (qa > 0) & (disc >= 0) & (first <= 1)
+        if not hits.any():
+            return 1.0, np.zeros(0, np.int64)
+        lam = float(first[hits].min())
+        return lam, np.flatnonzero(hits & (first <= lam))
 
     def _topology_steps(self):
         """The search from the given skeleton: minimisation and topology moves, each kept only
@@ -249,6 +295,7 @@ class Refinement:
                 "J_before": float(self.before.J), "J": float(self.evaluation.value),
                 "terms": dict(self.evaluation.terms),
                 "stages": [dict(e) for e in entries], "fixed": int(self.fixed.sum()),
+                "held": int(self.held.sum()),
                 "samples": int(len(fit.objective.samples.points))}
         E = [float(e["terms"].get("E", 0.0)) for e in entries]
         return Skeleton(joints, bones, bone_w[wi], t_w[wi], energy=E,
