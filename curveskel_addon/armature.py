@@ -1,5 +1,5 @@
-"""Armature object from a Skeleton, laid out by ``core.rig_layout`` (bones, parents, rolls) and
-named by ``core.rig_layout.named_rig``: readable names, and when the source mesh is symmetric
+"""Armature object from a Skeleton, laid out by ``rig.rig_layout`` (bones, parents, rolls) and
+named by ``rig.rig_layout.named_rig``: readable names, and when the source mesh is symmetric
 (``mirror_plane``) ``.L``/``.R`` pairs with exactly mirrored joints.
 
 Binding reads the bones themselves (the armature is the truth once it exists). The armature also
@@ -22,7 +22,9 @@ import numpy as np
 from mathutils import Matrix, Vector
 
 from .core.errors import CurveSkelError
-from .core.rig_layout import RigLayout, mirror_plane, named_rig, rig_layout
+from .core.geometry.segments import closest_on_bones
+from .mesh_read import evaluated_triangles
+from .rig.rig_layout import RigLayout, mirror_plane, named_rig, rig_layout
 
 __all__ = ["build_armature", "layout_of", "is_curveskel_armature", "local_up"]
 
@@ -66,8 +68,6 @@ def _source_vertices(context, source):
     """Vertices of the evaluated ``source`` mesh in its local space, or None."""
     if source is None or source.type != 'MESH':
         return None
-    from .mesh_read import evaluated_triangles
-
     try:
         V, _ = evaluated_triangles(source, context.evaluated_depsgraph_get())
     except Exception:          # a mesh Blender cannot evaluate: no mirror plane, nothing else lost
@@ -174,8 +174,6 @@ def build_armature(context, skeleton, name: str, collection, matrix_world, *, ro
     X = skeleton.joints[:, :3]
     mid = 0.5 * (X[skeleton.bones[:, 0]] + X[skeleton.bones[:, 1]]) if skeleton.n_bones else np.zeros((0, 3))
     if len(mid):
-        from .core.mapping import closest_on_bones
-
         P = np.concatenate([rig.heads, rig.tails])
         segs = np.stack([np.arange(rig.n_bones), rig.n_bones + np.arange(rig.n_bones)], 1)
         near, _, _ = closest_on_bones(mid, P, segs)

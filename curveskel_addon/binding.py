@@ -23,7 +23,7 @@ this hierarchy (Blender's glTF exporter otherwise warns "Armature must be the pa
 mesh" and guesses the armature by name). :func:`unbind_mesh` clears the parent the bind set,
 keeping the world transform.
 
-Weights ("SURFACE", the default) come from ``core.skin_weights.bone_weights`` (closest bone
+Weights ("SURFACE", the default) come from ``rig.skin_weights.bone_weights`` (closest bone
 restricted to its connected patch of the surface, blended at joints, smoothed along the surface)
 and are written through a bmesh deform layer (no per-vertex operator call); or from Blender's heat
 weights ("HEAT", ``parent_set(type='ARMATURE_AUTO')``, slow on large meshes; its parenting is
@@ -39,8 +39,10 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
+from .armature import build_armature
 from .core.errors import CurveSkelError
-from .core.skin_weights import bone_weights
+from .core.skeleton import Skeleton
+from .rig.skin_weights import bone_weights
 
 __all__ = ["bind_mesh", "unbind_mesh", "parent_to_armature", "write_weights", "armature_bones",
            "METHODS", "GROUPS_KEY", "MODIFIER_KEY", "MODIFIER_NAME", "PARENTED_KEY",
@@ -455,9 +457,6 @@ def benchmark_bind(vertices: int = 100_000, *, bones: int = 20, method: str = "S
     :func:`bind_mesh` plus ``build_seconds``. With ``use_mapping=False`` the mapping is recomputed
     by closest point on the bones (the re-bind path).
     """
-    from .armature import build_armature
-    from .core.skeleton import Skeleton
-
     around = 64
     rings = max(vertices // around, 2)
     length, radius = 10.0, 0.5

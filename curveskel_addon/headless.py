@@ -8,13 +8,16 @@ Import a mesh file with Blender's own importers, run the SAME operator the UI ru
 from __future__ import annotations
 
 import os
+import time
+from math import radians
 from pathlib import Path
 
 import bpy
 import numpy as np
 
-from . import framing, results
+from . import framing, registration, results
 from .core import CurveSkelError
+from .mesh_files import read_mesh   # .off only: trimesh is imported there when a file needs it
 
 __all__ = ["reset_scene", "ensure_registered", "mesh_object_from_arrays", "import_mesh",
            "generate", "save_blend", "render_preview", "cli_outputs"]
@@ -31,8 +34,6 @@ def reset_scene() -> None:
 def ensure_registered() -> None:
     """Register the add-on's classes unless they already are (e.g. the extension is enabled)."""
     if not hasattr(bpy.types, "CURVESKEL_OT_generate"):
-        from . import registration
-
         registration.register()
 
 
@@ -56,7 +57,7 @@ def mesh_object_from_arrays(name: str, V, F, collection=None) -> bpy.types.Objec
 
 
 def import_mesh(path) -> bpy.types.Object:
-    """Import a .obj / .ply / .stl (Blender's importers) or .off (read with trimesh) file.
+    """Import a .obj / .ply / .stl (Blender's importers) or .off (read by :mod:`.mesh_files`) file.
 
     Returns the mesh object, active and selected; several objects in one file are joined.
     Raises CurveSkelError for a missing file, an unknown suffix or a file with no mesh.
@@ -73,8 +74,6 @@ def import_mesh(path) -> bpy.types.Object:
     elif suffix == ".stl":
         bpy.ops.wm.stl_import(filepath=str(path))
     elif suffix == ".off":
-        from .core.mesh_io import read_mesh  # trimesh: command line only, never inside Blender
-
         V, F = read_mesh(path)
         return mesh_object_from_arrays(path.stem, V, F)
     else:
@@ -424,8 +423,6 @@ def _coverage(path) -> dict | None:
 
 
 def _lights(coll) -> list:
-    from math import radians
-
     out = []
     for name, energy, rot in (("Key", 3.0, (50.0, 10.0, 30.0)), ("Fill", 1.0, (60.0, -20.0, -120.0))):
         light = bpy.data.lights.new(f"CurveSkel Preview {name}", 'SUN')
@@ -467,8 +464,6 @@ def cli_outputs(mesh_path, params: dict, *, blend=None, render=None, bind: bool 
     """What ``skeletonize.py --blend/--render`` does: a fresh scene, the mesh through Blender's
     importer, the ``curveskel.generate`` operator with ``params`` (SkeletonParams fields), then
     the .blend and/or the preview picture. Returns the objects and timings."""
-    import time
-
     reset_scene()
     ensure_registered()
     ob = import_mesh(mesh_path)

@@ -25,12 +25,15 @@ from .properties import (
     settings_dict,
     skeleton_params,
 )
+from .run_summary import headline, summary
 from .silhouette import build_silhouette, update_silhouette
 
 __all__ = ["CURVESKEL_OT_generate", "LiveRun", "input_problem", "build_result", "CLASSES"]
 
-# Share of the progress bar (0..100) each core stage fills.
-_PROGRESS_SPAN = {"first_approximation": (0.0, 40.0), "optimise": (40.0, 100.0)}
+# Share of the progress bar (0..100) each core stage fills: the first approximation, then the
+# search (every other stage the core reports: its minimisations and moves, "done").
+_PROGRESS_SPAN = {"first_approximation": (0.0, 20.0)}
+_SEARCH_SPAN = (20.0, 100.0)
 
 
 def input_problem(context) -> str | None:
@@ -47,18 +50,15 @@ def input_problem(context) -> str | None:
 
 def _progress(wm):
     def progress(stage: str, fraction: float) -> None:
-        lo, hi = _PROGRESS_SPAN.get(stage, (0.0, 100.0))
+        lo, hi = _PROGRESS_SPAN.get(stage, _SEARCH_SPAN)
         wm.progress_update(lo + (hi - lo) * min(max(fraction, 0.0), 1.0))
     return progress
 
 
 def _describe(name: str, skeleton, seconds: float, stopped: bool = False) -> str:
-    s = skeleton.summary()
-    how = "stopped after" if stopped else "in"
+    s = summary(skeleton)
     return (f"CurveSkel '{name}': {s['joints']} joints, {s['bones']} bones, "
-            f"E0 {s['E0']:.4g} -> E {s['E_fit']:.4g} {how} {s['iterations']} iterations"
-            + (f" ({s['E']:.4g} with the silhouette's radii)" if s["E"] != s["E_fit"] else "")
-            + f", {seconds:.2f} s")
+            f"{headline(s, stopped=stopped)}, {seconds:.2f} s")
 
 
 def build_result(context, src, skeleton, options: dict, *, live_silhouette=None,
@@ -123,9 +123,10 @@ def _make_active(context, ob) -> None:
 
 
 class LiveRun:
-    """A run the user watches: the solver advances a few iterations at a time and the silhouette
-    follows (the paper's Figure 4). The operator's modal mode drives it from a timer; nothing here
-    needs a window, so it also runs headless.
+    """A run the user watches: the search advances a few stages at a time and the silhouette
+    follows (the paper's Figure 4; the search's merges and prunes change the joints, the
+    silhouette's mesh with them). The operator's modal mode drives it from a timer; nothing
+    here needs a window, so it also runs headless.
 
     Creating it runs the first approximation and creates the live silhouette (tagged as the
     result of ``src``); :meth:`stop` returns the skeleton so far, :meth:`discard` removes the
@@ -144,37 +145,30 @@ class LiveRun:
         results.tag(self.silhouette, src, "silhouette")
         self._steps = self.run.steps()
         self.state = None
-        self._best = None                    # (E, Skeleton) of the lowest energy so far
 
-    def advance(self, iterations: int) -> bool:
-        """Run up to ``iterations`` solver iterations, then redraw the silhouette.
-        Returns True once the solver has finished."""
-        for _ in range(max(int(iterations), 1)):
+    def advance(self, stages: int) -> bool:
+        """Run up to ``stages`` stages of the search, then redraw the silhouette. Returns True
+        once the search has finished."""
+        finished = False
+        for _ in range(max(int(stages), 1)):
             state = next(self._steps, None)
-            if state is None:
-                return True
-            self.state = state
-            if self._best is None or state.energy <= self._best[0]:
-                self._best = (state.energy, self.run.current_skeleton())
-            if state.done:
-                return True
-        update_silhouette(self.silhouette, self.run.current_skeleton())
-        return False
+            if state is not None:
+                self.state = state
+            if state is None or state.done:
+                finished = True
+                break
+        sk = self.run.current_skeleton()
+        update_silhouette(self.silhouette, sk, roots=results.root_joints(sk))
+        return finished
 
     def stop(self, finished: bool = False):
-        """End the run. A run whose solver finished gets the same final stages as execute
-        (pruning, merging: ``SkeletonRun.result()``); a run stopped with Esc keeps the skeleton
-        of lowest energy so far (the solvers never raise E, so in practice the latest iterate,
-        but a stop must never hand back a worse one)."""
+        """End the run: the skeleton of the last stage the search kept (J never rises from one
+        kept stage to the next, so it is the lowest-J skeleton so far; a finished search's is
+        ``SkeletonRun.result()``)."""
         self._steps.close()
         if finished and self.state is not None and self.state.done:
             return self.run.result()
-        latest = self.run.current_skeleton()
-        if self._best is None or (latest.energy and latest.energy[-1] <= self._best[0]):
-            return latest
-        best = self._best[1]
-        best.timings = dict(self.run.timings)
-        return best
+        return self.run.current_skeleton()
 
     def discard(self) -> None:
         self._steps.close()
@@ -263,7 +257,9 @@ class CURVESKEL_OT_generate(GenerateSettings, bpy.types.Operator):
                 return self._modal_end(context, stopped=False)
             st = self._live.state
             if st is not None:
-                self._status(context, f"iteration {st.iteration}, E = {st.energy:.4g} (Esc to stop)")
+                what = "E" if self._live.run.params.solver == "paper" else "J"
+                self._status(context, f"stage {st.iteration} ({st.stage}), {what} = "
+                                      f"{st.energy:.4g} (Esc to stop)")
             return {'RUNNING_MODAL'}
         except BaseException as exc:
             return _modal_failed(self, context, exc, getattr(self._live, "source_name", "?"))
@@ -278,11 +274,7 @@ class CURVESKEL_OT_generate(GenerateSettings, bpy.types.Operator):
             self.report({'ERROR'}, f"CurveSkel: the source object '{live.source_name}' is gone")
             return {'CANCELLED'}
         sil = live.silhouette
-        # Pruning/merging at the end can change the joint count: the live preview then cannot
-        # be updated in place and a fresh silhouette is built instead.
-        resized = (len(sil.data.vertices) != skeleton.n_joints
-                   or len(sil.data.edges) != skeleton.n_bones)
-        if not self.make_silhouette or resized:
+        if not self.make_silhouette:
             results.remove_objects([sil])
             sil = None
         return self._finish(context, src, skeleton, self._t0, live=sil, stopped=stopped)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import bpy
 
 from . import results
+from .ops_bind import METHOD_ITEMS, bind_targets
 from .preferences import get_preferences
 from .properties import ADVANCED_NAMES, OPTION_NAMES, PARAM_NAMES, draw_settings, settings_dict
 
@@ -170,8 +171,6 @@ class CURVESKEL_PT_bind(_SubPanel, bpy.types.Panel):
     bl_label = "Bind Mesh"
 
     def draw(self, context):
-        from .ops_bind import METHOD_ITEMS, bind_targets
-
         layout = self.layout
         mesh, arm, problem = bind_targets(context)      # pointers only: cheap at every redraw
         if problem is not None:

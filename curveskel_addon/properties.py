@@ -20,9 +20,11 @@ __all__ = ["GenerateSettings", "CurveSkelSceneSettings", "PARAM_NAMES", "ADVANCE
 _D = SkeletonParams()
 
 _SOLVER_ITEMS = {
-    "lm": ("lm", "Levenberg-Marquardt", "Damped Gauss-Newton on the joints: converges in few iterations"),
-    "paper": ("paper", "Gradient descent (paper)",
-              "Gradient descent with exact line search, stopped as in the paper"),
+    "lm": ("lm", "Objective Search", "Search for the minimum of the objective J: joints and "
+           "radii fitted (Levenberg-Marquardt), joints merged, branches pruned, each change kept "
+           "only when J falls"),
+    "paper": ("paper", "Paper's Method", "The paper's method as published: its first "
+              "approximation, then gradient descent on E with the exact line search"),
 }
 
 
@@ -35,53 +37,39 @@ class GenerateSettings:
 
     # -- the artist's settings (SkeletonParams.ARTIST) ---------------------------------------
     spacing: FloatProperty(
-        name="Detail Size", description="Smallest parts found, as a fraction of the object's "
-        "size (the distance between cross-sections): smaller finds fingers and ears and gives "
-        "more joints", default=_D.spacing, min=0.005, max=0.1, step=0.1, precision=3)
+        name="Detail Size", description="Smallest parts found, as a fraction of each part's "
+        "size (the spacing of the first approximation's contours): smaller finds fingers and "
+        "ears", default=_D.spacing, min=0.001, max=0.5, soft_min=0.005, soft_max=0.1, step=0.1,
+        precision=3)
     smoothness: FloatProperty(
-        name="Smoothness", description="How straight the bones run between branchings: 0 follows "
-        "the middle of the shape exactly, higher values smooth out wiggles",
-        default=_D.smoothness, min=0.0, max=10.0, soft_max=5.0, precision=2, step=10)
+        name="Smoothness", description="How straight the bones run between branchings (the "
+        "weight of the objective's smoothness term): 0 follows the middle of the shape "
+        "exactly, 10 is nearly straight", default=_D.smoothness, min=0.0, max=1000.0,
+        soft_max=10.0, precision=2, step=10)
     prune: FloatProperty(
-        name="Branch Pruning", description="Remove small branches: a branch reaching out of the "
-        "body by less than this many of its own thicknesses is a bump, not a limb (0 keeps all)",
-        default=_D.prune, min=0.0, max=5.0, precision=2, step=10)
+        name="Branch Pruning", description="The price of a branch: a branch stays only where it "
+        "explains more of the shape than it costs; higher removes more small branches (0 keeps "
+        "every branch found)", default=_D.prune, min=0.0, max=1000.0, soft_max=10.0,
+        precision=2, step=10)
     max_joints: IntProperty(
-        name="Max Joints", description="Simplify the bones until the skeleton has at most this "
-        "many joints", default=_D.max_joints, min=3, max=1000)
+        name="Max Joints", description="The skeleton never has more joints than this (0: no "
+        "limit)", default=_D.max_joints, min=0, max=100_000, soft_max=1000)
     # -- advanced (SkeletonParams' other fields: the command line's advanced group) ----------
-    solver: EnumProperty(name="Solver", description="Optimisation method of the final fit",
+    solver: EnumProperty(name="Solver", description="How the skeleton is found",
                          items=_solver_items(), default=_D.solver)
-    max_iterations: IntProperty(name="Iterations", description="Maximum number of optimisation "
-                                "iterations of the final fit (0 keeps the centred curve)",
-                                default=_D.max_iterations, min=0, max=5000, soft_max=1000)
-    tolerance: FloatProperty(name="Tolerance", description="Stop when one iteration lowers the "
-                             "energy by less than this fraction of the initial energy",
-                             default=_D.tolerance, min=1e-9, max=1.0, precision=6, step=0.01)
-    seed: IntProperty(name="Seed", description="Seed of the pole search (results are reproducible)",
+    max_iterations: IntProperty(name="Iterations", description="At most this many steps per "
+                                "minimisation between the search's moves (Objective Search; the "
+                                "last one, to convergence, up to 100 at least) or gradient-descent "
+                                "iterations (Paper's Method)", default=_D.max_iterations, min=0,
+                                max=100_000, soft_max=1000)
+    tolerance: FloatProperty(name="Tolerance", description="Paper's Method: stop when an "
+                             "iteration lowers the energy by less than this fraction of the "
+                             "initial energy", default=_D.tolerance, min=1e-9, max=1.0,
+                             precision=6, step=0.01)
+    seed: IntProperty(name="Seed", description="Where the pole search starts: 0 at the vertex "
+                      "farthest from the centre (the same skeleton in any pose or numbering), "
+                      "another value at a random vertex (results are reproducible)",
                       default=_D.seed, min=0)
-    area_weighted: BoolProperty(name="Area Weights", description="Weight each vertex by its area "
-                                "(a surface integral instead of the paper's vertex sum)",
-                                default=_D.area_weighted)
-    refit_mapping: BoolProperty(name="Re-fit Mapping", description="Re-fit each vertex's skeleton "
-                                "point to the closest bone point between solver steps (lets bones "
-                                "fill the volume)", default=_D.refit_mapping)
-    centre: BoolProperty(name="Centre Curve", description="Centre the curve on the medial axis and "
-                         "simplify it (off: the paper's first approximation)", default=_D.centre)
-    centring: FloatProperty(name="Centring", description="How firmly joints stay at their centred "
-                            "place while the energy is fitted (0 lets the energy move them)",
-                            default=_D.centring, min=0.0, max=1000.0, soft_max=30.0, precision=2,
-                            step=10)
-    containment: FloatProperty(name="Containment", description="Keep joints and their balls inside "
-                               "the mesh (Levenberg-Marquardt only; 0 is off)",
-                               default=_D.containment, min=0.0, max=1000.0, soft_max=100.0,
-                               precision=3, step=1)
-    simplify: FloatProperty(name="Simplify", description="Merge chain joints while the chain stays "
-                            "within this fraction of the local radius (0 is off)",
-                            default=_D.simplify, min=0.0, max=5.0, precision=3, step=1)
-    max_fit_points: IntProperty(name="Fit Points", description="Above this many vertices the fit "
-                                "uses an area-weighted random subset of this size (0 uses all)",
-                                default=_D.max_fit_points, min=0, soft_max=500000)
     min_component_area: FloatProperty(name="Min Part Area", description="Leave out loose parts "
                                       "with less than this share of the total area (scan debris; "
                                       "0 keeps all)", default=_D.min_component_area, min=0.0,
@@ -96,18 +84,17 @@ class GenerateSettings:
                        "modifier, one vertex group per deforming bone, and the armature as the mesh's "
                        "parent (its world transform kept)",
                        default=False)
-    interactive: BoolProperty(name="Interactive", description="Watch the optimisation: the "
-                              "silhouette updates while it runs, Esc stops it and keeps the skeleton "
-                              "so far (ignored in background mode)", default=False)
-    update_every: IntProperty(name="Update Every", description="Iterations between silhouette "
-                              "updates in interactive mode", default=2, min=1, soft_max=50)
+    interactive: BoolProperty(name="Interactive", description="Watch the search: the "
+                              "silhouette updates while it runs, Esc stops it and keeps the "
+                              "skeleton so far (ignored in background mode)", default=False)
+    update_every: IntProperty(name="Update Every", description="Search stages between "
+                              "silhouette updates in interactive mode", default=1, min=1,
+                              soft_max=50)
 
 
 #: Properties that are parameters of the core: every SkeletonParams field, the artist's first.
 PARAM_NAMES = SkeletonParams.ARTIST
-ADVANCED_NAMES = ("solver", "max_iterations", "tolerance", "seed", "area_weighted",
-                  "refit_mapping", "centre", "centring", "containment", "simplify",
-                  "max_fit_points", "min_component_area")
+ADVANCED_NAMES = ("solver", "max_iterations", "tolerance", "seed", "min_component_area")
 #: Properties of the Blender side of a run.
 OPTION_NAMES = ("make_armature", "make_silhouette", "silhouette_in_render", "bind", "interactive",
                 "update_every")

@@ -22,6 +22,12 @@ import json
 import bpy
 from mathutils import Matrix
 
+from .binding import POINTER
+from .core.errors import CurveSkelError
+from .rig.graph_root import central_joints
+from .rig.rig_layout import rig_layout
+from .run_summary import summary
+
 __all__ = ["COLLECTION_NAME", "FIGURE_KEYS", "collection", "result_names", "find_result",
            "source_of", "source_object", "previous_results", "remove_objects", "adopt_names", "tag",
            "store_figures", "figures", "root_joints", "pointer_properties", "SOURCE_POINTER",
@@ -35,13 +41,19 @@ ARMATURE_POINTER = "curveskel_result_armature"
 SILHOUETTE_POINTER = "curveskel_result_silhouette"
 _ROLE_POINTER = {"armature": ARMATURE_POINTER, "silhouette": SILHOUETTE_POINTER}
 #: Custom-property keys of the figures, with their labels in the panel.
+#: J0 and J: the objective of the first stage of the search and of the result (the paper's
+#: solver: its E); E: the paper's E of the result; Stages: the search's kept stages; Steps: its
+#: minimisation steps (the paper's solver: gradient-descent iterations).
 FIGURE_KEYS = {
     "curveskel_n_joints": "Joints",
     "curveskel_n_bones": "Bones",
     "curveskel_components": "Parts",
+    "curveskel_J0": "J0",
+    "curveskel_J": "J",
     "curveskel_E0": "E0",
     "curveskel_E": "E",
-    "curveskel_iterations": "Iterations",
+    "curveskel_stages": "Stages",
+    "curveskel_iterations": "Steps",
     "curveskel_seconds": "Seconds",
 }
 
@@ -49,8 +61,6 @@ FIGURE_KEYS = {
 def pointer_properties():
     """(type, attribute, property) of the Object pointers above and the binding's armature
     pointer (``binding.POINTER``), for ``registration.py``."""
-    from .binding import POINTER
-
     P = bpy.props.PointerProperty
     O = bpy.types.Object
     return ((O, SOURCE_POINTER, P(type=O, name="CurveSkel Source",
@@ -190,12 +200,15 @@ def tag(ob, source, role: str) -> None:
 
 def store_figures(ob, skeleton, *, params: dict, stopped: bool = False) -> None:
     """Write the result's figures on ``ob`` as custom properties (see FIGURE_KEYS)."""
-    s = skeleton.summary()
+    s = summary(skeleton)
     ob["curveskel_n_joints"] = int(s["joints"])
     ob["curveskel_n_bones"] = int(s["bones"])
     ob["curveskel_components"] = int(s["components"])
+    ob["curveskel_J0"] = float(s["J0"])
+    ob["curveskel_J"] = float(s["J"])
     ob["curveskel_E0"] = float(s["E0"])
     ob["curveskel_E"] = float(s["E"])
+    ob["curveskel_stages"] = int(s["stages"])
     ob["curveskel_iterations"] = int(s["iterations"])
     ob["curveskel_seconds"] = round(float(s["seconds"]), 3)
     ob["curveskel_stopped"] = bool(stopped)
@@ -211,11 +224,7 @@ def figures(ob) -> dict:
 
 def root_joints(skeleton):
     """Root joint of every connected part: the joints the armature roots its parts at
-    (``core.rig_layout``), i.e. each part's most central joint."""
-    from .core.errors import CurveSkelError
-    from .core.graph_root import central_joints
-    from .core.rig_layout import rig_layout
-
+    (``rig.rig_layout``), i.e. each part's most central joint."""
     if skeleton.n_bones:
         try:
             return rig_layout(skeleton.joints, skeleton.bones).roots

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import bmesh
 import bpy
 import numpy as np
+
+from .rig.graph_root import central_joints
 
 __all__ = ["build_silhouette", "update_silhouette", "SKIN_MODIFIER", "SMOOTH_MODIFIER"]
 
@@ -26,7 +29,7 @@ def build_silhouette(skeleton, name: str, collection, matrix_world, *, roots=(),
     matrix_world : mathutils.Matrix
         The source object's transform (the skeleton is in the source's local space).
     roots : sequence of int
-        Joints marked as Skin roots (one per connected part).
+        Joints marked as Skin roots (one per connected part; ``results.root_joints``).
     in_render : bool
         Whether the silhouette shows in renders.
 
@@ -60,16 +63,34 @@ def build_silhouette(skeleton, name: str, collection, matrix_world, *, roots=(),
 
 
 def update_silhouette(ob, skeleton, *, roots=None) -> None:
-    """Move the silhouette's vertices and radii to ``skeleton`` (same joints and bones)."""
+    """Show ``skeleton`` on the silhouette ``ob``: its vertices and radii moved in place, or,
+    when the joints or bones are not the same in number (the search merged joints or pruned a
+    branch), the mesh's geometry rebuilt with the skin layer kept (the object, its modifiers and
+    its mesh data-block stay)."""
     me = ob.data
     J = skeleton.joints
     if len(me.vertices) != len(J) or len(me.edges) != len(skeleton.bones):
-        raise ValueError(f"silhouette {ob.name!r} has {len(me.vertices)} vertices and "
-                         f"{len(me.edges)} edges, the skeleton {len(J)} joints and "
-                         f"{len(skeleton.bones)} bones")
-    me.vertices.foreach_set("co", np.ascontiguousarray(J[:, :3], dtype=np.float32).ravel())
+        _rebuild(me, J[:, :3], skeleton.bones)
+        if roots is None:           # the new vertices have no root flags: one root per part
+            roots = central_joints(J, skeleton.bones)
+    else:
+        me.vertices.foreach_set("co", np.ascontiguousarray(J[:, :3], dtype=np.float32).ravel())
     _set_skin(me, J[:, 3], roots)
     me.update()
+
+
+def _rebuild(me, X, bones) -> None:
+    """Replace the geometry of ``me`` by vertices ``X`` and edges ``bones``, keeping its skin
+    layer (``clear_geometry`` would drop it, and Python cannot add one to a mesh: bmesh can)."""
+    bm = bmesh.new()
+    try:
+        bm.verts.layers.skin.verify()
+        verts = [bm.verts.new(p) for p in np.asarray(X, dtype=np.float64).tolist()]
+        for i, j in np.asarray(bones, dtype=np.int64).reshape(-1, 2).tolist():
+            bm.edges.new((verts[i], verts[j]))
+        bm.to_mesh(me)
+    finally:
+        bm.free()
 
 
 def _set_skin(me, radius, roots) -> None:

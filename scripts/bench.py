@@ -143,7 +143,7 @@ def stem(spec: str) -> str:
 # ---------------------------------------------------------------------------------------------
 def _dijkstra_graph(V, F):
     """(seconds to clean, seconds to build, the edge-length graph) of a mesh: the baselines'."""
-    from curveskel_addon.core.mesh_graph import adjacency, edge_lengths, unique_edges
+    from curveskel_addon.core.geometry.mesh_graph import adjacency, edge_lengths, unique_edges
     from curveskel_addon.core.mesh_input import clean_mesh
 
     t0 = time.perf_counter()
@@ -174,6 +174,7 @@ def worker_dijkstra(spec: str, repeat: int = 1) -> dict:
 
 def worker_speed(spec: str, repeat: int = 1) -> dict:
     from curveskel_addon.core import skeletonize
+    from curveskel_addon.run_summary import summary
 
     V, F, t_load = load_mesh(spec)
     import gc
@@ -199,11 +200,12 @@ def worker_speed(spec: str, repeat: int = 1) -> dict:
     del A
     res = {"mesh": spec, "V": int(len(V)), "F": int(len(F)), "seconds": t_total,
            "all_seconds": [x[0] for x in all_runs], "stages": timings, "joints": sk.n_joints, "bones": sk.n_bones,
-           "iterations": sk.iterations, "load_s": t_load, "clean_s": t_clean, "graph_s": t_graph,
+           "iterations": summary(sk)["iterations"], "search_stages": summary(sk)["stages"],
+           "load_s": t_load, "clean_s": t_clean, "graph_s": t_graph,
            "dijkstra_s": t_dijkstra, "rss_loaded_mb": rss_loaded, "rss_peak_mb": rss_peak}
     try:   # binding weights (rig layout + skin weights), if the rig modules are present
-        from curveskel_addon.core.rig_layout import rig_layout
-        from curveskel_addon.core.skin_weights import skin_weights
+        from curveskel_addon.rig.rig_layout import rig_layout
+        from curveskel_addon.rig.skin_weights import skin_weights
 
         t0 = time.perf_counter()
         layout = rig_layout(sk.joints, sk.bones)
@@ -220,7 +222,7 @@ def _peer_radii(V, F, X, owner):
     surface where no vertex is mapped (or no mapping exists)."""
     import numpy as np
 
-    from curveskel_addon.core.quality import mesh_distance
+    from curveskel_addon.measure.quality import mesh_distance
 
     r = np.full(len(X), np.nan)
     if owner is not None:
@@ -246,13 +248,19 @@ def run_method(method: str, V, F):
 
     D = float(np.linalg.norm(np.ptp(V, axis=0)))
     if method.startswith("curveskel"):
-        from curveskel_addon.core import SkeletonParams, skeletonize
+        from curveskel_addon.core import SkeletonParams, SkeletonRun, skeletonize
+        from curveskel_addon.run_summary import summary
 
-        params = {"curveskel": SkeletonParams(), "curveskel-paper": SkeletonParams.paper(),
-                  "curveskel-initial": SkeletonParams(max_iterations=0)}[method]
         t0 = time.perf_counter()
-        sk = skeletonize(V, F, params)
-        return sk.joints, sk.bones, sk, time.perf_counter() - t0, {"iterations": sk.iterations}
+        if method == "curveskel-initial":
+            # the first approximation (default settings, cut to Max Joints), before the search
+            sk = SkeletonRun(V, F, SkeletonParams()).current_skeleton()
+        else:
+            params = {"curveskel": SkeletonParams(), "curveskel-paper": SkeletonParams.paper()}[method]
+            sk = skeletonize(V, F, params)
+        s = summary(sk)
+        return sk.joints, sk.bones, sk, time.perf_counter() - t0, {
+            "iterations": s["iterations"], "stages": s["stages"], "J": s["J"]}
     if method.startswith("skeletor"):
         import skeletor
         import trimesh
@@ -308,7 +316,7 @@ def run_method(method: str, V, F):
 def worker_quality(spec: str, method: str, n_samples: int, repeat: int = 1) -> dict:
     from types import SimpleNamespace
 
-    from curveskel_addon.core.quality import quality
+    from curveskel_addon.measure.quality import quality
 
     V, F, _ = load_mesh(spec)
     joints, bones, sk, sec, note = run_method(method, V, F)
@@ -335,7 +343,7 @@ SHAPE_KEYS = ["to_ref_mean", "to_ref_p95", "from_ref_mean", "from_ref_p95", "len
 def shape_of(V, F, joints, bones, spec: str) -> dict:
     """Issue 10's shape measures of one skeleton against ``REFERENCE/<mesh>.json`` (the
     reference-free ones only when there is no reference file)."""
-    from curveskel_addon.core.quality import shape_measures
+    from curveskel_addon.measure.quality import shape_measures
 
     ref = REFERENCE / f"{stem(spec)}.json"
     m = shape_measures(V, F, (joints, bones), ref if ref.is_file() else None)
@@ -513,8 +521,7 @@ def f3(x, nd=3):
 
 
 # -- speed ------------------------------------------------------------------------------------
-STAGE_ORDER = ["clean", "components", "pole", "contours", "reeb", "meb", "mapping", "weights",
-               "centre", "edit", "optimise", "finish", "radii", "contain", "polish"]
+STAGE_ORDER = ["clean", "initialise", "budget", "search"]
 #: Issue 11's speed targets: ratio to one Dijkstra for ~100k meshes, seconds for the shared
 #: meshes (armadillo and horse get more) and for 1M (with the 2 GB peak).
 #: Processes whose Dijkstra baseline is taken (median) for the ratio targets.
@@ -801,7 +808,7 @@ def quality_markdown(results, specs, methods, notes, args) -> str:
 
 Command: `.venv/bin/{cmd}` — {env_line()}.
 
-Measures from `curveskel_addon.core.quality.quality(V, F, skeleton, n_samples={args.samples}, seed=0)`
+Measures from `curveskel_addon.measure.quality.quality(V, F, skeleton, n_samples={args.samples}, seed=0)`
 (definitions in its module docstring); distances are divided by the bounding-box diagonal D.
 *recon*: mesh surface samples → silhouette boundary (union of round cones, exact sdRoundCone);
 *rev*: silhouette boundary samples → mesh surface (exact point-to-triangle), penalises bulges;
@@ -813,8 +820,8 @@ mesh components / genus (✗ = mismatch). *seconds*: the method alone, from arra
 subprocess per mesh and method; with `--quality-repeat N` the fastest of N runs in it.
 
 Methods: `curveskel` = `SkeletonParams()`; `curveskel-paper` = `SkeletonParams.paper()`;
-`curveskel-initial` = `SkeletonParams(max_iterations=0)` (every stage but the fit of E: no
-solver step; shows what the fit adds or loses);
+`curveskel-initial` = the first approximation of `SkeletonParams()` cut to *Max Joints*, before
+the search (`SkeletonRun(V, F).current_skeleton()`: shows what the search adds or loses);
 `skeletor-wavefront` = `skeletor.pre.fix_mesh` + `by_wavefront(waves=1, step_size=1)`, radii from
 skeletor (mean distance of mapped vertices where it gives 0); `skeletor-clusters` = `fix_mesh` +
 `contract()` (defaults) + `by_vertex_clusters(sampling_dist=0.02 D)`, radii = mean distance of
@@ -904,7 +911,7 @@ def shape_markdown(by: dict, specs, methods) -> str:
         summary, ttable = "curveskel's default was not run.", ""
     return f"""### Shape against the reference curves (issue 10)
 
-`curveskel_addon.core.quality.shape_measures(V, F, skeleton, reference)` against
+`curveskel_addon.measure.quality.shape_measures(V, F, skeleton, reference)` against
 `../shared/reference/<mesh>.json` (CGAL mean-curvature-flow skeletons; PyGEL3D's for the
 octopus); every distance / D. *to_ref*: points every D/400 along the method's bones → nearest of
 points every D/2000 along the reference's bones (spurious or off-centre parts); *from_ref*: the
@@ -1056,7 +1063,7 @@ def plot_skeletons(specs, method: str = "curveskel", folder: Path | None = None,
         return None
     import numpy as np
 
-    from curveskel_addon.core.quality import curve_arrays, sample_surface, shape_measures
+    from curveskel_addon.measure.quality import curve_arrays, sample_surface, shape_measures
 
     ref_dir = Path(ref_dir) if ref_dir else REFERENCE
     sk_dir = Path(sk_dir) if sk_dir else OUT / "skeletons" / method

@@ -179,7 +179,7 @@ def run_mesh(path, methods, skeleton_dir=None, bind_options=None, repeat=3):
     from curveskel_addon.armature import build_armature
     from curveskel_addon.binding import bind_mesh, unbind_mesh
     from curveskel_addon.core import Skeleton, skeletonize
-    from curveskel_addon.core.mesh_io import read_mesh
+    from curveskel_addon.mesh_files import read_mesh
 
     V, F = read_mesh(str(path))
     V = np.asarray(V, np.float64)

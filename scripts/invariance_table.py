@@ -24,8 +24,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
 from curveskel_addon.core import skeletonize  # noqa: E402
-from curveskel_addon.core.mesh_io import read_mesh  # noqa: E402
-from curveskel_addon.core.quality import curve_distances  # noqa: E402
+from curveskel_addon.measure.quality import curve_distances  # noqa: E402
+from curveskel_addon.mesh_files import read_mesh  # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "meshes"
 DEFAULT = ["capsule", "bent_capsule", "torus", "star", "hand", "spot", "horse", "3holes"]

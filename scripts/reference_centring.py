@@ -3,8 +3,8 @@ cross-sections.
 
     .venv/bin/python scripts/reference_centring.py [MESH ...] [--heldout [DIR]]
 
-The polish centres chain joints in the mesh's cross-sections (``core/cross_section.py``). Where the
-reference curve (``../shared/reference``: CGAL's mean-curvature skeletons) does not run through
+J's centring term pulls chain joints to the centres of the mesh's cross-sections
+(``core/geometry/sections.py``, ``core/objective/terms.py``). Where the reference curve (``../shared/reference``: CGAL's mean-curvature skeletons) does not run through
 those centres, ``to_ref`` measures a centred curve against an off-centre one. For each reference
 bone, points every D/400 along it are cut by the plane across the bone (normal along it); the
 section loop round each point (within D/4) gives the area centroid. Columns:
@@ -14,7 +14,7 @@ section loop round each point (within D/4) gives the area centroid. Columns:
 - ``> 0.02``: share of the points whose centroid lies more than 0.02 D away (issue 10's to_ref
   target per mesh);
 - ``centroid to_ref``: the centroids' ``to_ref`` (mean distance to the nearest point of the
-  reference, points every D/2000 along it, as ``core.quality``): what a curve through the section
+  reference, points every D/2000 along it, as ``measure.quality``): what a curve through the section
   centres would score, mean and median.
 
 Not asserted anywhere: it explains a measure, it does not grade the method.
@@ -33,8 +33,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "scripts")]
 
 from bench import REFERENCE, load_mesh  # noqa: E402
-from curveskel_addon.core.quality import (SHAPE_FINE_STEP, curve_arrays,  # noqa: E402
-                                          curve_points, section_offsets)
+from curveskel_addon.measure.quality import (SHAPE_FINE_STEP, curve_arrays,  # noqa: E402
+                                             curve_points, section_offsets)
 
 SHARED_ORDER = ["3holes.off", "rocker-arm.obj", "spot.obj", "elephant.obj", "homer.obj",
                 "fertility.off", "hand.off", "armadillo.obj", "octopus.off", "horse.off"]
@@ -43,7 +43,7 @@ SHARED_ORDER = ["3holes.off", "rocker-arm.obj", "spot.obj", "elephant.obj", "hom
 def reference_centring(V, F, R, RB):
     """(found, offset, centroid_to_ref) of the reference curve (R, RB) in the mesh (V, F):
     the share of its sample points with a section loop, each found point's distance to its
-    section's centroid (:func:`core.quality.section_offsets`) and each centroid's distance to
+    section's centroid (:func:`measure.quality.section_offsets`) and each centroid's distance to
     the reference, both ÷ D."""
     D = float(np.linalg.norm(np.ptp(V, axis=0)))
     found, off, C = section_offsets(V, F, (R, RB), D, centroids=True)

@@ -4,7 +4,7 @@
 Usage (from the repository root):
 
     .venv/bin/python scripts/shape_table.py                                  # default parameters
-    .venv/bin/python scripts/shape_table.py --set smoothness=1 --set refine=0
+    .venv/bin/python scripts/shape_table.py --set smoothness=2 --set prune=0.5
     .venv/bin/python scripts/shape_table.py --paper --meshes horse spot --json out.json
     .venv/bin/python scripts/shape_table.py --ref-only     # the reference curves themselves
     .venv/bin/python scripts/shape_table.py --save-dir out/sk   # keep the skeletons (JSON)
@@ -108,9 +108,11 @@ def measure(spec: str, overrides: dict, paper: bool, n_samples: int, ref_only: b
     import numpy as np
 
     from curveskel_addon.core import SkeletonParams, skeletonize
-    from curveskel_addon.core.quality import (
-        bbox_diagonal, bone_points, curve_arrays, inside_mesh, mesh_topology, sample_surface,
-        section_offsets, shape_measures, silhouette_sdf, skeleton_topology)
+    from curveskel_addon.core.geometry.inside import inside_mesh
+    from curveskel_addon.measure.quality import (
+        bbox_diagonal, bone_points, curve_arrays, mesh_topology, sample_surface, section_offsets,
+        shape_measures, silhouette_sdf, skeleton_topology)
+    from curveskel_addon.run_summary import summary
 
     name = stem(spec)
     try:
@@ -130,7 +132,8 @@ def measure(spec: str, overrides: dict, paper: bool, n_samples: int, ref_only: b
             params = SkeletonParams.from_dict({**base.to_dict(), **overrides})
             sk = skeletonize(V, F, params)
             joints, bones = np.asarray(sk.joints), np.asarray(sk.bones)
-            meta = {"iterations": getattr(sk, "iterations", None)}
+            s = summary(sk)
+            meta = {"iterations": s["iterations"], "stages": s["stages"], "J": s["J"]}
         sec = time.perf_counter() - t0
         if save_dir and not ref_only:
             Path(save_dir).mkdir(parents=True, exist_ok=True)

@@ -87,8 +87,9 @@ def bent_capsule(radius: float = 0.5, arm: float = 4.0, n: int = 30, n_around: i
     return tube_along(path, radius, n_around)
 
 
-def torus(R: float = 3.0, r: float = 1.0, n_major: int = 64, n_minor: int = 24):
-    """Torus around z: genus 1."""
+def torus(R: float = 3.0, r: float = 1.0, n_major: int = 64, n_minor: int = 24, diagonal: int = 0):
+    """Torus around z: genus 1. Each quad of the (u, v) grid is split along one diagonal
+    (``diagonal`` 0) or the other (1): the same vertices, another triangulation."""
     u = 2 * np.pi * np.arange(n_major) / n_major
     v = 2 * np.pi * np.arange(n_minor) / n_minor
     U, W = np.meshgrid(u, v, indexing="ij")
@@ -101,7 +102,10 @@ def torus(R: float = 3.0, r: float = 1.0, n_major: int = 64, n_minor: int = 24):
     b = ((i + 1) % n_major) * n_minor + j
     c = ((i + 1) % n_major) * n_minor + (j + 1) % n_minor
     d = i * n_minor + (j + 1) % n_minor
-    F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    if diagonal:
+        F = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)])
+    else:
+        F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
     if _signed_volume(V, F) < 0:
         F = F[:, ::-1].copy()
     return V, F.astype(np.int64)
@@ -142,7 +146,7 @@ def two_capsules():
 
 # -- shapes with a known curve skeleton (issue 10), and their analytic curves --------------------
 # A curve is returned as (X (k, 3) float, bones (b, 2) int): any form
-# ``curveskel_addon.core.quality.curve_distances`` takes.
+# ``curveskel_addon.measure.quality.curve_distances`` takes.
 
 __all__ += ["board", "board_with_tab", "BOARD"]
 __all__ += ["plate_with_holes", "box_bar", "t_beam", "t_beam_centroid_y", "bent_tube", "polyline", "union_curves",
@@ -404,4 +408,184 @@ def six_part_figure(parts=SIX_PART, n_around: int = 16, head_subdivisions: int =
         Fs.append(F + off)
         ids.append(np.full(len(V), k))
         off += len(V)
+    return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(ids)
+
+
+# -- awkward shapes of issue 30 (a new user's meshes, not tuned on) -----------------------------
+#: A flat hexagonal nut: across-corners radius of the hexagon, hole radius, thickness (along z).
+NUT = {"outer": 1.2, "hole": 0.5, "thickness": 0.4}
+#: A bone with two knobs at each end: a shaft along x from -shaft/2 to shaft/2 of radius
+#: ``radius``; at each end two balls of radius ``knob`` centred ``spread`` off the axis in y.
+KNOBBED = {"shaft": 4.0, "radius": 0.3, "knob": 0.45, "spread": 0.4}
+#: A T: a trunk along x from -4 to 4 (radius 1), a limb along +y from the trunk's axis to 4
+#: (radius 0.5).
+TEE = {"trunk": 4.0, "trunk_radius": 1.0, "limb": 4.0, "limb_radius": 0.5}
+__all__ += ["hex_nut", "NUT", "knobbed_bone", "KNOBBED", "tee", "TEE", "uniform_capsule"]
+
+
+def hex_nut(outer=NUT["outer"], hole=NUT["hole"], thickness=NUT["thickness"], edge: float = 0.08):
+    """A flat hexagonal prism (corners at radius ``outer`` in the xy-plane, thickness along z,
+    centred on the origin) with a round hole of radius ``hole`` through it along z (manifold3d
+    booleans), edges refined to ``edge``: a ring whose outline has six corners. Genus 1.
+    Its curve skeleton is one loop round the hole, through the middle of the material."""
+    import manifold3d as m3
+
+    prism = m3.Manifold.cylinder(thickness, outer, outer, 6, True)
+    bore = m3.Manifold.cylinder(2 * thickness, hole, hole, 48, True)
+    return _to_arrays((prism - bore).refine_to_length(edge))
+
+
+def knobbed_bone(shaft=KNOBBED["shaft"], radius=KNOBBED["radius"], knob=KNOBBED["knob"],
+                 spread=KNOBBED["spread"], edge: float = 0.08):
+    """A bone (a femur, a dog's chew): a capsule along x with two balls at each end, their
+    centres ``(+-(shaft/2 + knob/2), +-spread, 0)`` (manifold3d union), edges refined to
+    ``edge``. Its curve skeleton forks at each end, one branch into each knob."""
+    import manifold3d as m3
+
+    path = np.linspace(0, 1, 30)[:, None] * [shaft, 0.0, 0.0] - [shaft / 2, 0.0, 0.0]
+    solid = _manifold_from(*tube_along(path, radius, 24))
+    for c in knob_centres(shaft, knob, spread):
+        solid = solid + m3.Manifold.sphere(knob, 48).translate(list(c))
+    return _to_arrays(solid.refine_to_length(edge))
+
+
+def knob_centres(shaft=KNOBBED["shaft"], knob=KNOBBED["knob"], spread=KNOBBED["spread"]):
+    """(4, 3) the centres of :func:`knobbed_bone`'s knobs: -x end first."""
+    x = shaft / 2 + knob / 2
+    return np.array([[-x, -spread, 0.0], [-x, spread, 0.0], [x, -spread, 0.0], [x, spread, 0.0]])
+
+
+def tee(trunk=TEE["trunk"], trunk_radius=TEE["trunk_radius"], limb=TEE["limb"],
+        limb_radius=TEE["limb_radius"], n_around: int = 32):
+    """A trunk (a capsule along x from -trunk to trunk) and a thinner limb (a capsule along +y
+    from the trunk's axis to ``limb``), united (manifold3d). Its curve skeleton: the trunk's
+    axis and the limb's, meeting in one junction on the trunk's axis."""
+    a = np.linspace(-trunk, trunk, 40)[:, None] * [1.0, 0, 0]
+    b = np.linspace(0, limb, 20)[:, None] * [0, 1.0, 0]
+    return _to_arrays(_manifold_from(*tube_along(a, trunk_radius, n_around))
+                      + _manifold_from(*tube_along(b, limb_radius, n_around)))
+
+
+def uniform_capsule(radius: float = 0.4, height: float = 2.0, edge: float | None = None):
+    """trimesh's ``creation.capsule(height, radius)`` shape (cap centres at z = -height/2 and
+    height/2) triangulated evenly: rings as far apart as the points around them (``edge``,
+    default a 32nd of the circumference), caps of as many rings."""
+    edge = 2 * np.pi * radius / 32 if edge is None else edge
+    n_around = int(np.ceil(2 * np.pi * radius / edge))
+    n_body = int(np.ceil(height / edge)) + 1
+    cap_rings = int(np.ceil(np.pi * radius / 2 / edge))
+    path = np.stack([np.zeros(n_body), np.zeros(n_body), np.linspace(-height / 2, height / 2, n_body)], 1)
+    return tube_along(path, radius, n_around, cap_rings)
+
+
+#: The 15-part insect (z up, head towards -y, mirror plane x = 0): head and body (ellipsoids:
+#: centre, semi-axes), the two antennae as one tube bent inside the head (a path and its
+#: radius: :func:`_antennae_path`), and six legs of two capsules each (femur from inside the body to the knee, tibia
+#: from the knee to the ground; capsules (axis start, axis end, radius) overlap at the knee).
+INSECT = {
+    "head": ((0.0, -0.58, 0.55), (0.15, 0.14, 0.13)),
+    "body": ((0.0, 0.10, 0.50), (0.22, 0.60, 0.18)),
+    "antennae": ("path", 0.018),
+}
+for _k, (_y, _dy) in enumerate(((-0.2, -0.15), (0.0, 0.0), (0.2, 0.15))):
+    for _side, _sx in (("L", 1.0), ("R", -1.0)):
+        INSECT[f"femur{_k}.{_side}"] = ((0.10 * _sx, _y, 0.50), (0.45 * _sx, _y + _dy, 0.66), 0.035)
+        INSECT[f"tibia{_k}.{_side}"] = ((0.45 * _sx, _y + _dy, 0.66), (0.62 * _sx, _y + 2 * _dy, 0.02), 0.03)
+__all__ += ["insect", "INSECT", "sphere_grid"]
+
+
+def _antennae_path(n: int = 12):
+    """The antennae's axis: two straight feelers out and up from the head, joined by a bend at
+    the head's centre (inside the head: only the feelers show)."""
+    centre = np.array([0.0, -0.58, 0.55])
+    tips = np.array([[0.30, -0.90, 0.85], [-0.30, -0.90, 0.85]])
+    u = (tips - centre) / np.linalg.norm(tips - centre, axis=1, keepdims=True)
+    p1, p2 = centre + 0.06 * u[0], centre + 0.06 * u[1]
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    t = np.linspace(0.0, 1.0, 9)[1:-1, None]
+    bend = (1 - t) ** 2 * p1 + 2 * t * (1 - t) * centre + t * t * p2      # a smooth turn
+    return np.concatenate([tips[0] + s * (p1 - tips[0]), bend, p2 + s * (tips[1] - p2)])
+
+
+def insect(parts=INSECT, n_around: int = 12, subdivisions: int = 2):
+    """An insect of 15 separate, overlapping closed parts (see ``INSECT``): body segments
+    (head, body), the antennae (one tube through the head, its two ends outside) and six legs
+    of two parts each. About 4.7k faces.
+
+    Returns (V, F, part): ``part`` (n,) int, the index into ``list(parts)`` of each vertex's part.
+    """
+    import trimesh
+
+    Vs, Fs, ids = [], [], []
+    off = 0
+    for k, (name, spec) in enumerate(parts.items()):
+        if spec[0] == "path":
+            V, F = tube_along(_antennae_path(), spec[1], n_around, 3)
+        elif len(spec) == 3:
+            a, b, r = np.asarray(spec[0], float), np.asarray(spec[1], float), float(spec[2])
+            n_path = max(int(np.ceil(np.linalg.norm(b - a) / (1.5 * r))), 2) + 1
+            V, F = tube_along(a + np.linspace(0, 1, n_path)[:, None] * (b - a), r, n_around, 3)
+        else:
+            sphere = trimesh.creation.icosphere(subdivisions=subdivisions)
+            V = np.asarray(sphere.vertices, float) * np.asarray(spec[1], float) + np.asarray(spec[0], float)
+            F = np.asarray(sphere.faces, np.int64)
+            if _signed_volume(V, F) < 0:
+                F = F[:, ::-1].copy()
+        Vs.append(V)
+        Fs.append(F + off)
+        ids.append(np.full(len(V), k))
+        off += len(V)
+    return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(ids)
+
+
+def sphere_grid(rows: int = 10, cols: int = 20, radius: float = 0.5, pitch: float = 1.6,
+                subdivisions: int = 1):
+    """``rows * cols`` equal closed spheres on a grid in the xy-plane, ``pitch`` apart (a gap of
+    ``pitch - 2 radius`` between neighbours), each an icosphere: one mesh of that many parts.
+
+    Returns (V, F, part)."""
+    import trimesh
+
+    sphere = trimesh.creation.icosphere(subdivisions=subdivisions)
+    S = np.asarray(sphere.vertices, float) * radius
+    T = np.asarray(sphere.faces, np.int64)
+    if _signed_volume(S, T) < 0:
+        T = T[:, ::-1].copy()
+    i, j = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+    centres = np.stack([j.ravel() * pitch, i.ravel() * pitch, np.zeros(rows * cols)], 1)
+    n = len(centres)
+    V = (S[None] + centres[:, None]).reshape(-1, 3)
+    F = (T[None] + (np.arange(n) * len(S))[:, None, None]).reshape(-1, 3)
+    return V, F, np.repeat(np.arange(n), len(S))
+
+
+#: Small free parts on the six-part figure (sphere centre, radius): two eyes just off the
+#: head's front and a button just off the torso's front, each a gap of more than half its own
+#: radius away (not touching: they float free).
+DETAILS = {
+    "eye.L": ((0.08, -0.25, 2.10), 0.03),
+    "eye.R": ((-0.08, -0.25, 2.10), 0.03),
+    "button": ((0.0, -0.39, 1.20), 0.04),
+}
+__all__ += ["figure_with_details", "DETAILS"]
+
+
+def figure_with_details(details=DETAILS, subdivisions: int = 2):
+    """The six-part figure (:func:`six_part_figure`) with small free parts (``DETAILS``): nine
+    parts. Returns (V, F, part), ``part`` indexing ``list(SIX_PART) + list(details)``."""
+    import trimesh
+
+    V, F, part = six_part_figure()
+    sphere = trimesh.creation.icosphere(subdivisions=subdivisions)
+    S, T = np.asarray(sphere.vertices, float), np.asarray(sphere.faces, np.int64)
+    if _signed_volume(S, T) < 0:
+        T = T[:, ::-1].copy()
+    Vs, Fs, ids = [V], [F], [part]
+    off, k = len(V), len(SIX_PART)
+    for centre, radius in details.values():
+        Vs.append(S * radius + np.asarray(centre, float))
+        Fs.append(T + off)
+        ids.append(np.full(len(S), k))
+        off += len(S)
+        k += 1
     return np.concatenate(Vs), np.concatenate(Fs), np.concatenate(ids)

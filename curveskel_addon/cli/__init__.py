@@ -8,9 +8,12 @@ when asked for), and ``curveskel_addon.core`` never imports this package.
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import os
 import sys
+
+from .. import __version__
 
 __all__ = ["COMMANDS", "main", "run", "exit_with"]
 
@@ -21,8 +24,6 @@ COMMANDS: dict[str, tuple[str, str]] = {
 
 
 def _usage() -> str:
-    from .. import __version__
-
     width = max(map(len, COMMANDS))
     lines = [f"usage: curveskel [--version] [--help] COMMAND [args]",
              "",
@@ -41,14 +42,10 @@ def main(argv=None) -> int:
         _write(sys.stdout if argv else sys.stderr, _usage())
         return 0 if argv else 2
     if argv[0] in ("-V", "--version"):
-        from .. import __version__
-
         _write(sys.stdout, f"curveskel {__version__}\n")
         return 0
     name = argv[0]
     if name not in COMMANDS:
-        import difflib
-
         close = difflib.get_close_matches(name, COMMANDS, n=1)
         hint = f" (did you mean '{close[0]}'?)" if close else ""
         _write(sys.stderr, f"error: unknown command {name!r}{hint}; commands: "

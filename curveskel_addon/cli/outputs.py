@@ -25,6 +25,7 @@ from __future__ import annotations
 import os
 import shutil
 import stat
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -139,8 +140,6 @@ def _check_existing(path: Path, opt: str) -> None:
 
 def _probe(folder: Path, opt: str, path: Path) -> None:
     """Create and remove a file in ``folder`` (a read-only file system passes os.access)."""
-    import tempfile
-
     try:
         fd, name = tempfile.mkstemp(prefix=".curveskel-probe-", dir=folder)
     except OSError as exc:

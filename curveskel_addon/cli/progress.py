@@ -6,7 +6,7 @@ Nothing is shown for the first ``delay`` seconds (1 s; the environment variable
 * on a terminal, one line redrawn in place (``\\r``): stage, bar, percent, seconds; cleared at
   the end, so the summary that follows is not mixed with it;
 * elsewhere (a log file, CI, a pipe), one plain line per stage as it begins
-  (``progress    fitting E (2.4 s)``): no redraws to clutter a log; none while the mesh is
+  (``progress    optimising (2.4 s)``): no redraws to clutter a log; none while the mesh is
   read, so a bad file's error stays the only line.
 
 The reporter never stops a run: a stderr that fails (closed pipe, hung-up terminal) silences it.
@@ -21,13 +21,20 @@ import time
 __all__ = ["Progress", "STAGE_NAMES"]
 
 #: The words shown for the core's stages (``SkeletonRun``'s progress callback) and the CLI's own.
+#: The search's stages (a minimisation, then moves, in rounds: ``fit``, ``merge``, ``prune``,
+#: ``split``, ``contract``; the paper's solver: ``initialise``, ``fit``) show as one,
+#: "optimising", its bar the core's fraction: a log gets one line for the whole search, not one
+#: per round.
 STAGE_NAMES = {
     "read": "reading the mesh",
     "first_approximation": "first approximation",
-    "centre": "centring",
-    "edit": "editing",
-    "optimise": "fitting E",
-    "polish": "radii and polish",
+    "initialise": "optimising",
+    "fit": "optimising",
+    "merge": "optimising",
+    "prune": "optimising",
+    "split": "optimising",
+    "contract": "optimising",
+    "done": "optimising",
     "quality": "quality measures",
     "write": "writing",
     "blender": "Blender",
@@ -82,7 +89,7 @@ class Progress:
         """The core's callback: ``stage`` has reached ``fraction`` (0..1)."""
         if not self.enabled:
             return
-        new = stage != self.stage
+        new = self.stage is None or _name(stage) != _name(self.stage)
         self.stage, self.fraction = stage, max(0.0, min(float(fraction), 1.0))
         now = self.clock()
         if now - self.start < self.delay:
@@ -92,11 +99,11 @@ class Progress:
             if new or self._drawn_at is None or now - self._drawn_at >= 0.1 or self.fraction >= 1.0:
                 self._draw(now)
         elif (new or not self.shown) and stage not in _NOT_LOGGED:
-            self._write(f"progress    {STAGE_NAMES.get(stage, stage)} ({now - self.start:.1f} s)\n")
+            self._write(f"progress    {_name(stage)} ({now - self.start:.1f} s)\n")
 
     def _draw(self, now: float) -> None:
         filled = int(round(self.fraction * _BAR))
-        name = STAGE_NAMES.get(self.stage, self.stage)
+        name = _name(self.stage)
         line = (f"{name:<20} [{'#' * filled}{'-' * (_BAR - filled)}] "
                 f"{100 * self.fraction:3.0f}%  {now - self.start:6.1f} s")
         pad = max(self._width - len(line), 0)
@@ -117,3 +124,7 @@ class Progress:
         if self.enabled and self.tty and self._width:
             self._write("\r" + " " * self._width + "\r")
             self._width = 0
+
+
+def _name(stage: str) -> str:
+    return STAGE_NAMES.get(stage, stage)

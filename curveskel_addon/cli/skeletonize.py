@@ -4,8 +4,8 @@
                                [--bind --glb OUT.glb | --fbx OUT.fbx] [method options]
 
 Reads .obj .ply .stl .off, runs the curveskel core, writes the outputs asked for, then prints
-vertices, components, joints, bones, E0 -> E, iterations and the time of every stage (stdout;
-``--quiet``: nothing). Progress goes to stderr for runs longer than a second. Errors are one
+vertices, components, joints, bones, J (first -> returned) with its terms, the search's stages,
+the paper's E and the time of every stage (stdout; ``--quiet``: nothing). Progress goes to stderr for runs longer than a second. Errors are one
 line (exit status 2); ``--debug`` shows a traceback.
 
 No file is ever lost or damaged (:mod:`.outputs`): every output path is checked before the
@@ -20,14 +20,20 @@ from __future__ import annotations
 import argparse
 import io
 import os
+import re
 import signal
 import sys
 import time
 from dataclasses import fields
 from pathlib import Path
 
+import numpy as np
+
 from .. import __version__
-from ..core import SOLVERS, CurveSkelError, SkeletonParams
+from ..core import SOLVERS, CurveSkelError, Skeleton, SkeletonParams, SkeletonRun
+from ..measure.quality import quality
+from ..mesh_files import read_mesh
+from ..run_summary import energy_text, moves_text, summary, terms_text
 from .outputs import Output, check_outputs, commit, kept, remove_temps, temp_path
 from .progress import Progress
 
@@ -35,37 +41,33 @@ __all__ = ["build_parser", "main", "run", "params_from_args", "print_summary"]
 
 _HELP = {
     # the artist's settings (the Blender panel shows these)
-    "spacing": "detail: distance between cross-sections as a fraction of each part's size "
-               "(smaller finds smaller parts, more joints; default %(default)s)",
-    "smoothness": "smoothness of the curve along chains: 0 follows the medial axis exactly, "
-                  "10 is nearly straight between branchings (default %(default)s)",
-    "prune": "remove a leaf branch reaching out of its junction by less than this many of its "
-             "own radii: a bump, not a part (0 = keep all; default %(default)s)",
-    "max_joints": "simplify chains until the skeleton has at most this many joints "
-                  "(0 = no limit; default %(default)s)",
+    "spacing": "detail size: the first approximation's spacing, the distance between its "
+               "contour levels as a fraction of each part's size (smaller finds smaller parts; "
+               "default %(default)s)",
+    "smoothness": "smoothness of the curve: the weight of J's smoothness term (how much chains "
+                  "turn and radii bend): 0 follows the cross-sections' centres exactly, 10 is "
+                  "nearly straight between junctions (default %(default)s)",
+    "prune": "branch pruning: the price of a branch (a tip) in J; a branch stays only where it "
+             "explains more of the surface than it costs (0 = keep every branch the first "
+             "approximation found; default %(default)s)",
+    "max_joints": "a hard upper bound on the skeleton's joints (0 = no limit; default "
+                  "%(default)s)",
     # advanced
-    "solver": "optimiser of the final fit: 'paper' = gradient descent with exact line search "
-              "(eqs. 28-31), 'lm' = Levenberg-Marquardt, converges (default %(default)s)",
-    "max_iterations": "upper bound on optimiser iterations (default %(default)s)",
-    "tolerance": "stop when an iteration lowers E by less than TOLERANCE * E0 (paper: 1e-3; default %(default)s)",
+    "solver": "'lm' = the search for the minimum of J (Levenberg-Marquardt on the joints and "
+              "radii, topology moves kept only when J falls); 'paper' = the paper's method "
+              "(gradient descent on E with the exact line search, eqs. 28-31; --paper also "
+              "sets the paper's other settings) (default %(default)s)",
+    "max_iterations": "lm: at most this many steps per minimisation of J between the search's "
+                      "moves (the last one, to convergence, takes up to 100 at least); paper: "
+                      "gradient-descent iterations (default %(default)s)",
+    "tolerance": "paper: stop when an iteration lowers E by less than TOLERANCE * E0 (the "
+                 "paper's 1e-3; default %(default)s)",
     "seed": "where the pole search starts: 0 (default) starts at the vertex farthest from the "
             "centroid (the same skeleton whatever the mesh's numbering, position or rotation), "
             "any other value at a random vertex drawn from it, as in the paper. It moves the "
-            "pole, so it can change the branches' topology and the joint count (spot: 29-42 "
-            "joints over seeds 0-5); it also draws the fit's and the medial balls' subsets",
-    "area_weighted": "weight vertices by their area: the surface integral of eq. 8 instead of a vertex sum",
-    "refit_mapping": "re-fit each vertex's skeleton point to the closest bone point between solver "
-                     "steps (lets bones fill the volume; off by default)",
-    "centre": "centre the curve on the medial axis and simplify it (off = the paper's first "
-              "approximation, as with --paper)",
-    "centring": "weight holding each joint to its centred place while E is fitted "
-                "(0 = free; default %(default)s)",
-    "containment": "weight of a term keeping joints and points along the bones inside the mesh "
-                   "with their balls (lm only; 0 = off; default %(default)s)",
-    "simplify": "merge chain joints while the chain stays within this fraction of the local "
-                "radius (0 = off; default %(default)s)",
-    "max_fit_points": "above this many vertices fit an area-weighted random subset of this size "
-                      "(0 = all; default %(default)s)",
+            "pole, so it can change which branches the first approximation finds and the "
+            "joint count; it also draws the subset of surface samples above the sampling's "
+            "budget",
     "min_component_area": "drop connected parts with less than this share of the total area "
                           "(scan debris; their vertices follow the nearest kept part; "
                           "0 = keep all; default %(default)s)",
@@ -102,8 +104,10 @@ def build_parser(prog: str = "curveskel skeletonize") -> argparse.ArgumentParser
     ap.add_argument("mesh", type=Path, help="mesh file: .obj, .ply, .stl or .off")
     ap.add_argument("--json", type=Path, metavar="OUT.json", help="write the skeleton as JSON")
     ap.add_argument("--paper", action="store_true",
-                    help="the paper's method exactly: vertex sum, fixed mapping, gradient descent "
-                         "(solver=paper, no area weights, no re-fit, no pruning/simplification)")
+                    help="the paper's method exactly: its first approximation, then gradient "
+                         "descent on E (eq. 20, the vertex sum) with the exact line search, "
+                         "stopped as in eqs. 30-31 (SkeletonParams.paper(); options given "
+                         "replace its fields)")
     ap.add_argument("--quality", action="store_true",
                     help="compute the quality measures (energy, reconstruction distance, inside "
                          "fraction, topology) and store them in the JSON meta")
@@ -160,8 +164,9 @@ def params_from_args(args) -> SkeletonParams:
 
 
 def print_summary(path, V, sk, seconds: float, out=sys.stdout) -> None:
-    """The run's summary: mesh, repairs, skeleton, energy, times (and quality) on ``out``."""
-    s = sk.summary()
+    """The run's summary on ``out``: mesh, repairs, skeleton, J and its terms (issue 30), the
+    search's stages, the paper's E, times (and quality)."""
+    s = summary(sk)
     info = sk.meta.get("input", {})
     print(f"mesh        {path}: {len(V)} vertices, {info.get('input_faces', '?')} triangles, "
           f"{s['components']} component(s)", file=out)
@@ -176,18 +181,21 @@ def print_summary(path, V, sk, seconds: float, out=sys.stdout) -> None:
               f"{info['small_components_vertices']} vertices, mapped to the nearest kept part); "
               "--min-component-area 0 keeps them", file=out)
     print(f"skeleton    {s['joints']} joints, {s['bones']} bones", file=out)
-    meta = sk.meta
-    sampled = []
-    if meta.get("fit_points_subset"):
-        sampled.append(f"fit on {meta['fit_points']:,} area-weighted vertices (--max-fit-points)")
-    if meta.get("medial_points_subset"):
-        sampled.append(f"medial balls against {meta['medial_points']:,} area-weighted surface points")
-    if sampled:
-        print(f"sampled     {'; '.join(sampled)} of {len(V):,}", file=out)
-    print(f"energy      E0 {s['E0']:.6g} -> E {s['E_fit']:.6g} in {s['iterations']} iterations "
-          f"(solver {sk.meta.get('params', {}).get('solver', '?')})"
-          + (f"; E {s['E']:.6g} for the returned skeleton (radii fitted to the silhouette, "
-             "joints to their sections' centres)" if s["E"] != s["E_fit"] else ""), file=out)
+    if s["solver"] == "paper":
+        print(f"objective   E {s['J0']:.6g} -> {s['J']:.6g} in {s['iterations']} iterations "
+              "(solver paper: the paper's gradient descent on E, eq. 20, the vertex sum)", file=out)
+    else:
+        moves = moves_text(s)
+        samples = sk.meta.get("samples")
+        print(f"objective   J {s['J0']:.6g} -> {s['J']:.6g} in {s['stages']} stages"
+              + (f" ({moves})" if moves else "")
+              + f", {s['iterations']} minimisation steps"
+              + (f", over {samples:,} surface samples" if samples else "")
+              + " (solver lm)", file=out)
+        text = terms_text(sk)
+        if text:
+            print(f"terms       {text}", file=out)
+        print(f"energy      {energy_text(s)}", file=out)
     stages = " | ".join(f"{k} {v:.3f}" for k, v in sk.timings.items())
     print(f"time (s)    {stages}", file=out)
     print(f"total       {seconds:.3f} s", file=out)
@@ -207,17 +215,6 @@ _REPAIRS = {
     "flat_components_dropped": "flat parts left out",
     "open_fragments_dropped": "loose triangles/strips left out",
 }
-
-
-def _flat(d, prefix=""):
-    out = {}
-    for k, v in d.items():
-        if isinstance(v, dict):
-            out.update(_flat(v, prefix + k + "."))
-        elif isinstance(v, (int, float, str, bool)):
-            out[prefix + k] = v
-    return out
-
 
 
 def _flat(d, prefix=""):
@@ -250,9 +247,6 @@ def run(args, report=None, progress=None) -> int:
     -------
     int : the exit status (0).
     """
-    from ..core import SkeletonRun
-    from ..core.mesh_io import read_mesh
-
     if args.bind and not any(getattr(args, f) for f in _BIND_OUTPUTS):
         raise CurveSkelError("--bind needs an output that takes the bound rig: --glb OUT.glb, "
                              "--fbx OUT.fbx or --blend OUT.blend (nothing would be written)")
@@ -264,13 +258,8 @@ def run(args, report=None, progress=None) -> int:
     progress("read", 0.0)
     V, F = read_mesh(args.mesh)
     sk_run = SkeletonRun(V, F, params, progress)
-    for _ in sk_run.steps():
-        pass
-    progress("polish", 0.0)
     sk = sk_run.result()
     if args.quality:
-        from ..core.quality import quality
-
         progress("quality", 0.0)
         sk.meta["quality"] = quality(V, F, sk)
     seconds = time.perf_counter() - t0
@@ -294,8 +283,6 @@ def run(args, report=None, progress=None) -> int:
 
 def write_json(sk, out: Output) -> None:
     """The skeleton as JSON, written whole or not at all."""
-    import numpy as np
-
     for name in ("joints", "t"):
         if not np.all(np.isfinite(np.asarray(getattr(sk, name), dtype=float))):
             raise CurveSkelError(f"the result has non-finite {name} (a bug; please report it): "
@@ -311,8 +298,6 @@ def write_json(sk, out: Output) -> None:
 
 def _last_error(exc) -> str:
     """The line that says what went wrong in a message holding a Blender traceback."""
-    import re
-
     lines = [ln.strip() for ln in str(exc).strip().splitlines() if ln.strip()]
     errors = [ln for ln in lines if re.match(r"^[A-Za-z_.]*(Error|Exception): ", ln)]
     return errors[-1] if errors else (lines[0] if lines else type(exc).__name__)
@@ -320,7 +305,7 @@ def _last_error(exc) -> str:
 
 def blender_outputs(args, outs: dict, params, report) -> None:
     """--blend/--render: the same operator the Blender UI runs (curveskel_addon.headless)."""
-    from .. import headless
+    from .. import headless   # imports bpy: only when a Blender output is asked for
 
     blend = temp_path(outs["blend"]) if "blend" in outs else None
     render = temp_path(outs["render"]) if "render" in outs else None
@@ -339,8 +324,7 @@ def blender_outputs(args, outs: dict, params, report) -> None:
 
 def rig_outputs(args, outs: dict, V, sk, report) -> None:
     """--glb/--fbx: import the mesh into Blender, armature + binding from ``sk``, export."""
-    import numpy as np
-
+    # the Blender side only when a rig is asked for: the command line runs without bpy
     import bpy
 
     from .. import headless
@@ -353,8 +337,6 @@ def rig_outputs(args, outs: dict, V, sk, report) -> None:
     ob.data.vertices.foreach_get("co", co)
     if len(co) != 3 * len(V) or np.abs(co.reshape(-1, 3) - V).max() > 1e-5 * max(float(np.ptp(V)), 1e-12):
         # Blender's importer changed the vertices: bind by closest point on the bones instead.
-        from ..core import Skeleton
-
         sk = Skeleton(sk.joints, sk.bones, [], [], energy=sk.energy, timings=sk.timings, meta=sk.meta)
     options = {**sk.meta.get("params", {}), "make_armature": True, "make_silhouette": False,
                "silhouette_in_render": False, "bind": True}

@@ -12,7 +12,9 @@ Never imports bpy. Arrays in, a :class:`Skeleton` out. The package follows the m
                             inside test, cross-sections and their derivatives, surface
                             quadrature, enclosing balls, mesh graph
 ``initialise/``             the paper's first approximation: pole, Reeb graph of the geodesic
-                            distance, contours' enclosing balls, at the spacing's resolution
+                            distance, contours' enclosing balls, at the spacing's resolution;
+                            separate parts joined into figures where they overlap or nearly
+                            touch, small free parts hung from larger ones (``parts``)
 ``objective/``              J: its terms with exact Jacobians, its evaluation, the
                             minimisation over joints and radii; and the paper's E and solver
 ``moves/``                  topology moves as pure functions (graph -> graph, bone map), and

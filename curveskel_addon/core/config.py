@@ -27,9 +27,9 @@ class Weights:
     smooth: float = 0.01
     #: containment: a barrier, orders above the other terms (a bone leaving the mesh by a
     #: hundredth of D along its whole length outweighs any fit it buys)
-    contain: float = 100.0
+    contain: float = 10_000.0
     #: the price of a joint: a chain joint stays only where it explains a bend
-    joint: float = 1e-4
+    joint: float = 1e-3
     #: one unit of *Branch Pruning*: the price of a branch (a tip)
     branch: float = 0.01
 
@@ -81,6 +81,13 @@ class InitialConfig:
     #: a bone the first approximation leaves with no length gets this share of the size
     #: (every bone has a direction)
     nudge: float = 1e-6
+    #: separate parts whose surfaces come within this share of the thinner one's radius are
+    #: joined where they meet (:mod:`.initialise.parts`): a gap small against their radii is a
+    #: part modelled just short of its body, not a second figure
+    contact_gap: float = 0.5
+    #: a free part hangs from a larger part when it lies within this many radii of that part's
+    #: curve (an eye on a head, a button on a coat: a detail of the larger part's section)
+    float_reach: float = 2.0
 
 
 @dataclass(frozen=True)
@@ -97,6 +104,15 @@ class ObjectiveConfig:
     #: its point: all of a round part's (its outline is about one thickness away), little of
     #: the body a limb's root cuts across
     section_reach: float = 2.0
+    #: the fit's distance to the silhouette is a soft minimum over each sample's nearest cones,
+    #: this many
+    soft_bones: int = 3
+    #: ... softened over this share of the part's thickness (smooth where the nearest cone
+    #: changes; at most this times log(soft_bones) below the true least distance)
+    fit_softness: float = 0.05
+    #: a bone keeps this share of a spacing inside the surface (containment): grazing the
+    #: surface from inside, a curve is outside one step of the search later
+    contain_margin: float = 0.1
     #: points along every bone (ends included) where containment is measured
     bone_points: int = 9
     #: the uniform subset of samples hashes each sample's geodesic distance this many times

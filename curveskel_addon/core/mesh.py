@@ -16,6 +16,7 @@ from .geometry.face_tree import FaceTree
 from .geometry.inside import InsideTest
 from .geometry.mesh_graph import edge_table, faces_around
 from .geometry.rows import col_max, col_min, row_cross, row_norm
+from .geometry.cluster import cluster_vertices
 from .geometry.disc_sections import DiscSections, disc_sections
 from .geometry.sections import Sections, cross_sections
 from .geometry.meb import size_of
@@ -31,10 +32,14 @@ class Mesh:
     ----------
     V : (n, 3) float, read-only
     F : (m, 3) int, read-only
+    union : bool
+        The solid is the union of the mesh's parts (overlapping parts of one figure): the
+        inside test counts the winding number, not the parity (:class:`.geometry.inside.InsideTest`).
     """
 
     V: np.ndarray
     F: np.ndarray
+    union: bool = False
 
     def __post_init__(self):
         V = np.array(self.V, dtype=np.float64)
@@ -76,8 +81,8 @@ class Mesh:
 
     @cached_property
     def inside(self) -> InsideTest:
-        """Exact inside test (ray parity)."""
-        return InsideTest(self.V, self.F)
+        """Exact inside test (ray parity; the winding number for a union of parts)."""
+        return InsideTest(self.V, self.F, union=self.union)
 
     @cached_property
     def face_tree(self) -> FaceTree:
@@ -130,6 +135,16 @@ class Mesh:
                         np.array(cols[8], np.float64),
                         stack(cols[9], (3,)) if jacobian else None,
                         stack(cols[10], (3,)) if jacobian else None)
+
+    def coarsened(self, h: float) -> "Mesh":
+        """This mesh with its vertices clustered in cubes of side ``h``
+        (:func:`.geometry.cluster.cluster_vertices`), or itself where its edges are already
+        about that long: the cross-sections' centroids need no finer a surface than the
+        method's resolution."""
+        E, _ = self.edges
+        if not len(E) or float(np.mean(row_norm(self.V[E[:, 0]] - self.V[E[:, 1]]))) >= 0.5 * h:
+            return self
+        return Mesh(*cluster_vertices(self.V, self.F, h), union=self.union)
 
     @cached_property
     def _disc_cache(self) -> dict:

@@ -14,7 +14,11 @@ the vertices the faces use), never absolute, so scaling or moving a mesh cleans 
   to face outwards (positive signed volume), so inverted normals do not matter;
 * holes are capped (a fan from each loop of open edges to its mean), so every part has an
   inside: an open bowl becomes a half-ball;
-* parts with less than ``min_component_area`` of the total area (scan debris) are dropped;
+* debris is dropped, judged per part: a part smaller than the *Detail Size* of its nearest
+  neighbour (its enclosing ball's radius below ``detail`` times the neighbour's) is below the
+  resolution the neighbour is skeletonized at (:func:`_debris`); equal parts never are, so
+  200 equal spheres stay 200 parts. Optionally also parts with less than
+  ``min_component_area`` of the total area;
 * a mesh flat to within the tolerance (no volume at all) is refused.
 """
 
@@ -364,7 +368,54 @@ def _thickness(V: np.ndarray, centre=None) -> float:
     return float(np.ptp((V - centre) @ vt[-1]))
 
 
-def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
+def _debris(V: np.ndarray, labels: np.ndarray, k: int, usable: np.ndarray,
+            detail: float) -> np.ndarray:
+    """(k,) bool: the usable parts below the *Detail Size* of their nearest usable neighbour.
+
+    Each part is taken as the ball about its vertices' mean through its farthest vertex (no
+    rotation, move or renumbering changes it). A part's nearest neighbour is the one whose ball
+    comes closest to (or reaches deepest into) its own; the part is debris when its radius is
+    below ``detail`` times the neighbour's: a speck the neighbour's first approximation (its
+    contours ``detail`` of its size apart) could not resolve. The largest part never is.
+    Pairs are compared in blocks (``CONFIG.numerics.block`` at a time).
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    labels : (n,) int
+        Part of every vertex.
+    k : int
+        Number of parts.
+    usable : (k,) bool
+        Parts to judge and to compare with (flat parts and open fragments are not).
+    detail : float
+        The *Detail Size*: a share of a part's size.
+
+    Returns
+    -------
+    (k,) bool
+    """
+    out = np.zeros(k, bool)
+    ids = np.flatnonzero(usable)
+    if detail <= 0 or len(ids) < 2:
+        return out
+    cnt = np.maximum(np.bincount(labels, minlength=k), 1).astype(np.float64)
+    centre = np.stack([np.bincount(labels, weights=V[:, j], minlength=k) for j in range(3)],
+                      axis=1) / cnt[:, None]
+    radius = np.zeros(k)
+    np.maximum.at(radius, labels, np.sqrt(row_sumsq(V - centre[labels])))
+    C, R = centre[ids], radius[ids]
+    step = max(1, CONFIG.numerics.block // len(ids))
+    for s in range(0, len(ids), step):
+        e = min(s + step, len(ids))
+        gap = np.sqrt(np.maximum(row_sumsq((C[s:e, None, :] - C[None, :, :]).reshape(-1, 3)), 0.0))
+        gap = gap.reshape(e - s, -1) - R[s:e, None] - R[None, :]
+        gap[np.arange(e - s), np.arange(s, e)] = np.inf          # not its own neighbour
+        out[ids[s:e]] = R[s:e] < detail * R[np.argmin(gap, axis=1)]
+    return out
+
+
+def clean_mesh(V, F, *, min_component_area: float = 0.0, detail: float = 0.0) -> CleanMesh:
     """Validate a mesh and return its working copy.
 
     Raises :class:`CurveSkelError` for: no vertices, vertices not of shape (n, 3), NaN or inf
@@ -374,8 +425,10 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
     Repairs (and counts in ``info``): polygons (triangulated), duplicate vertex positions
     (merged; on open edges within ``_CFG.merge_tolerance`` of the size), faces with a repeated vertex
     or repeated faces (dropped), zero-area faces (dropped), inconsistent or inward winding
-    (turned over: ``flipped_faces``), connected parts with less than ``min_component_area`` of
-    the total area (dropped; 0 keeps all; the largest part is always kept), holes (capped with a
+    (turned over: ``flipped_faces``), debris (parts below the *Detail Size* ``detail`` of their
+    nearest neighbour, :func:`_debris`; 0 keeps all) and connected parts with less than
+    ``min_component_area`` of the total area (dropped; 0 keeps all; the largest part is always
+    kept): ``small_components_dropped``, holes (capped with a
     fan to a new working vertex: ``holes_capped``), isolated vertices.
     Vertices left out of the working mesh have ``work_index`` -1 (mapped to the skeleton
     afterwards by the nearest working vertex).
@@ -407,6 +460,12 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
         min_component_area = float("nan")
     if not 0.0 <= min_component_area < 1.0:
         raise CurveSkelError(f"min_component_area must be >= 0 and < 1, got {min_component_area!r}")
+    try:
+        detail = float(detail)
+    except (TypeError, ValueError):
+        detail = float("nan")
+    if not 0.0 <= detail < 1.0:
+        raise CurveSkelError(f"detail must be >= 0 and < 1, got {detail!r}")
 
     # Merge vertices at identical positions (STL soup, seams) so connectivity is real.
     uniq, inverse = _merge_identical(V)
@@ -548,6 +607,8 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
         usable_area = carea[~unusable]
         small = ~unusable & (carea < min_component_area * float(usable_area.sum()))
         small[np.flatnonzero(~unusable)[int(np.argmax(usable_area))]] = False
+    if detail > 0 and k > 1:
+        small |= _debris(Vw, labels, k, ~unusable, detail)
     drop = unusable | small
     small_vertices = 0
     if drop.any():
@@ -593,6 +654,8 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0) -> CleanMesh:
         info["cap_area_share"] = cap_area / max(float(carea[~drop].sum()), 1e-300)
     if min_component_area > 0:
         info["min_component_area"] = min_component_area
+    if detail > 0:
+        info["detail"] = float(detail)
     if flat.any():
         info["flat_components_dropped"] = int(flat.sum())
     if (fragment & ~flat).any():

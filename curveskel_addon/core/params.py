@@ -60,8 +60,15 @@ class SkeletonParams:
         the paper. Moving the pole can change which branches the first approximation finds.
     min_component_area : float
         Connected parts of the mesh with less than this share of the total surface area are
-        dropped before the fit (scan debris); their vertices are mapped to the nearest kept
-        part. The largest part is always kept. 0 keeps every part.
+        dropped before the fit; their vertices are mapped to the nearest kept part. The
+        largest part is always kept. 0 (the default) drops none by share: debris is judged per
+        part instead, against its nearest neighbour (a part below its neighbour's *Detail
+        Size* is dropped: :func:`.mesh_input.clean_mesh`), so 200 equal spheres stay 200 parts.
+    separate_parts : bool
+        One skeleton per connected part, as the parts are modelled. By default parts that
+        overlap or nearly touch are joined where they meet and small free parts hang from the
+        nearest larger part, so a figure modelled in pieces gets one tree
+        (:mod:`.initialise.parts`).
     """
 
     spacing: float = 0.025
@@ -72,7 +79,8 @@ class SkeletonParams:
     max_iterations: int = 30
     tolerance: float = 1e-3
     seed: int = 0
-    min_component_area: float = 0.01
+    min_component_area: float = 0.0
+    separate_parts: bool = False
 
     def __post_init__(self):
         check_params(self)        # one place for every rule: API, command line and Blender
@@ -120,6 +128,7 @@ RULES: dict[str, tuple] = {
     "tolerance": ("float", (0.0,), 1.0),
     "seed": ("int", 0, 2**32 - 1),                  # NumPy's seed range
     "min_component_area": ("float", 0.0, (1.0,)),
+    "separate_parts": ("bool", None, None),
 }
 
 

@@ -2,7 +2,10 @@
 
     mesh arrays -> clean (:mod:`.mesh_input`) -> Mesh, its parts, surface samples
       -> initialise   the paper's first approximation of every part at the spacing's
-                      resolution (:mod:`.initialise.first`), cut to the joint budget
+                      resolution (:mod:`.initialise.first`); parts that overlap or nearly
+                      touch joined where they meet, small free parts hung from larger ones,
+                      the samples inside another part left out (:mod:`.initialise.parts`;
+                      not with ``separate_parts``); cut to the joint budget
       -> search       J minimised: joints and radii fitted (LM), chain joints merged, leaf
                       branches pruned, junctions split or joined, each move kept only when J
                       falls (:mod:`.search`)
@@ -31,6 +34,8 @@ from .geometry.samples import canonical_subset, face_samples
 from .geometry.segments import closest_on_bones
 from .graph import SkeletonGraph, candidates_from_pairs
 from .initialise.first import initial_graph
+from .initialise.contacts import find_figures, part_spacing
+from .initialise.parts import join_parts, parts_meta
 from .mesh import Mesh
 from .mesh_input import clean_mesh
 from .objective.objective import Objective, weights_for
@@ -74,24 +79,39 @@ class SkeletonRun:
         self.timings: dict[str, float] = {}
         p = self.params
         t0 = time.perf_counter()
-        cm = clean_mesh(V, F, min_component_area=p.min_component_area)
+        cm = clean_mesh(V, F, min_component_area=p.min_component_area, detail=p.spacing)
+        n_comp, labels = cm.components
+        self.n_components = n_comp
+        paper = p.solver == "paper"
+        # parts joined into figures (not the paper's method, not when asked to keep them apart):
+        # the solid is their union, and so is the inside test
+        join = n_comp > 1 and not paper and not p.separate_parts
         # work about the middle of the bounding box (expanded squares lose digits far from
         # the origin), joints moved back on output
         self.origin = (col_min(cm.V) + col_max(cm.V)) / 2
         self.clean = cm
-        self.mesh = Mesh(cm.V - self.origin, cm.F)
+        self.mesh = Mesh(cm.V - self.origin, cm.F, union=join)
         self._input_V = np.asarray(V, dtype=np.float64) - self.origin
         self.timings["clean"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        n_comp, labels = cm.components
-        self.n_components = n_comp
-        paper = p.solver == "paper"
         cfg = CONFIG.objective
-        samples = face_samples(self.mesh.V, self.mesh.F, cfg.sample_length * p.spacing * self.mesh.D)
+        sample_length = cfg.sample_length * p.spacing * self.mesh.D
+        samples = face_samples(self.mesh.V, self.mesh.F, sample_length)
         one = n_comp == 1
-        self.init = initial_graph(self.mesh, labels, n_comp, samples, spacing=p.spacing,
+        self.parts = None
+        spacing = p.spacing
+        if join:        # the parts' contacts first; the parts share the mesh's resolution
+            figures = find_figures(self.mesh, labels, n_comp, samples, band=sample_length)
+            spacing = part_spacing(self.mesh, labels, n_comp, p.spacing)
+        self.init = initial_graph(self.mesh, labels, n_comp, samples, spacing=spacing,
                                   seed=p.seed, inside=(lambda: self.mesh.inside) if one else None,
                                   edges=cm.edge_table() if one else None, resolve=not paper)
+        sreg = self.init.sample_region
+        if join:
+            self.parts = join_parts(figures, samples, self.init)
+            self.init = self.parts.init
+            on_surface = np.flatnonzero(self.parts.visible)     # of the union
+            samples, sreg = samples.subset(on_surface), sreg[on_surface]
         self.progress("first_approximation", 1.0)
         self.timings["initialise"] = time.perf_counter() - t0
         self.log = SearchLog()
@@ -99,15 +119,15 @@ class SkeletonRun:
             self._steps = self._paper_steps()
             self.graph = self.init.graph
             return
-        sreg = self.init.sample_region
         if len(samples.points) > cfg.max_samples:
             fs = np.einsum("ij,ij->i", samples.bary, self.init.key[self.mesh.F[samples.face]])
             idx = canonical_subset(fs, cfg.max_samples, p.seed)
             samples = samples.subset(idx, float(samples.weights.sum() / samples.weights[idx].sum()))
             sreg = sreg[idx]
+        coarse = self.mesh.coarsened(cfg.sample_length * p.spacing * self.mesh.D)
         self.objective = Objective.for_first_approximation(self.mesh, samples, sreg,
                                                            self.init.graph, weights_for(p),
-                                                           p.spacing)
+                                                           p.spacing, sections=coarse)
         t0 = time.perf_counter()
         g0 = self.init.graph
         g0 = g0.with_thickness(self.objective.measure_thickness(g0))
@@ -194,6 +214,8 @@ class SkeletonRun:
                 "J": float(entries[-1]["J"]) if entries else None,
                 "terms": dict(entries[-1]["terms"]) if entries else {},
                 "samples": int(len(self.objective.samples.points)) if hasattr(self, "objective") else 0}
+        if self.parts is not None:
+            meta["parts"] = parts_meta(self.parts, graph)
         E = [e["terms"].get("E", 0.0) for e in entries]
         return Skeleton(joints, graph.bones, bone_w[wi], t_w[wi], energy=E,
                         timings=dict(self.timings), meta=meta)

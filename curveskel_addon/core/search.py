@@ -8,6 +8,7 @@ J falls.
         minimise J                                                  -> "fit"
         merge the chain joints whose removal lowers J                 -> "merge"
         prune the leaf branches whose removal lowers J                -> "prune"
+        a joint into the bones that explain their share worst         -> "insert"
         split a junction in two, or join two into one, if J falls    -> "split" / "contract"
     until no move lowers J
     minimise J to convergence                                         -> "fit"
@@ -30,7 +31,7 @@ import numpy as np
 from .config import CONFIG
 from .moves.gains import merge_gains, prune_gains
 from .moves.topology import (contract_bones, junction_splits, leaf_chains, merge_joints,
-                             prune_chains, split_joint)
+                             prune_chains, split_bones, split_joint)
 from .objective.minimise import minimise
 
 __all__ = ["search", "search_steps", "budget", "SearchLog"]
@@ -79,7 +80,7 @@ def _merge_batch(k, a, b, delta, bones, n_joints, *, gain=True):
     return np.asarray(out, np.int64)
 
 
-def _try(objective, graph, ev, make, batch, refit):
+def _try(objective, graph, ev, make, batch, refit, singles=None):
     """Apply ``make(graph, batch)`` for the whole batch and keep it if the exact J falls (after
     ``refit`` minimisation steps; 0: the joints held). Otherwise the first few candidates are
     tried alone (an estimate holds sigma, which a move can shift): the batch without those that
@@ -101,7 +102,7 @@ def _try(objective, graph, ev, make, batch, refit):
         return trial, ev_t, len(batch)
     if len(batch) == 1:
         return None
-    n = min(CONFIG.search.singles, len(batch))
+    n = min(CONFIG.search.singles if singles is None else singles, len(batch))
     good, best = [], None
     for i in range(n):
         tr, et = attempt(batch[i:i + 1])
@@ -139,6 +140,21 @@ def _prunes(objective, graph, ev, refit):
     return _try(objective, graph, ev,
                 lambda g, bt: prune_chains(g, [chains[c] for c in bt]),
                 np.asarray(batch, np.int64), refit)
+
+
+def _splits(objective, graph, ev, refit, max_joints):
+    """One round of bone splits: a joint in the middle of each of the bones that explain
+    their share of J worst (more than a joint's price), kept if J falls after ``refit``
+    steps (the merges' counterpart: a chain merged too far, or a bone that must bend to stay
+    inside, gets its joint back). (graph, ev, count) or None."""
+    room = (max_joints - graph.n_joints) if max_joints else len(graph.bones)
+    if room <= 0:
+        return None
+    share = objective.per_bone(graph, ev)
+    order = np.argsort(-share, kind="stable")
+    batch = order[share[order] > objective.weights.joint][:min(room, CONFIG.search.singles)]
+    # no estimate ranks the bones better than their share: the batch, else the worst alone
+    return _try(objective, graph, ev, lambda g, bt: split_bones(g, bt), batch, refit, singles=1)
 
 
 def _junctions(objective, graph, ev, refit, max_joints):
@@ -216,11 +232,6 @@ def search_steps(objective, graph, log: SearchLog, *, max_joints=0, max_iteratio
     log.objective = objective
     ev = objective.evaluate(graph)
     yield graph, log.add("initialise", graph, ev)
-    g2, ev2, it = minimise(objective, graph, evaluation=ev, max_iterations=max(steps, 100),
-                           tolerance=cfg.final_tolerance)
-    if ev2.value < ev.value:
-        graph, ev = g2, ev2
-        yield graph, log.add("fit", graph, ev, iterations=int(it))
     for _ in range(cfg.rounds):                      # merges with the joints held
         kept = _merges(objective, graph, ev, 0)
         if kept is None:
@@ -235,7 +246,9 @@ def search_steps(objective, graph, log: SearchLog, *, max_joints=0, max_iteratio
             graph, ev = g2, ev2
             yield graph, log.add("fit", graph, ev, iterations=int(it))
         for name, move in (("merge", lambda: _merges(objective, graph, ev, 0)),
-                           ("prune", lambda: _prunes(objective, graph, ev, cfg.refit_steps))):
+                           ("prune", lambda: _prunes(objective, graph, ev, cfg.refit_steps)),
+                           ("insert", lambda: _splits(objective, graph, ev, cfg.refit_steps,
+                                                      max_joints))):
             kept = move()
             if kept is not None:
                 graph, ev, n = kept
@@ -248,7 +261,7 @@ def search_steps(objective, graph, log: SearchLog, *, max_joints=0, max_iteratio
             yield graph, log.add(kind, graph, ev)
         if not changed:
             break
-    g2, ev2, it = minimise(objective, graph, evaluation=ev, max_iterations=max(steps, 100),
+    g2, ev2, it = minimise(objective, graph, evaluation=ev, max_iterations=steps,
                            tolerance=cfg.final_tolerance)
     if ev2.value < ev.value:
         graph, ev = g2, ev2

@@ -31,9 +31,10 @@ recon_sym
     ``(recon_mean + recon_rev_mean) / 2``.
 inside
     Fraction of points along the bones (``bone_samples`` per bone at ``t = (k + 1/2) / n``) that
-    are inside the mesh. Inside-ness is decided by ray parity along three random directions
-    (majority vote), with the triangles bucketed in a 2D grid orthogonal to each ray: exact for
-    closed meshes (up to rays grazing an edge, which the vote absorbs) and O(points + faces).
+    are inside the mesh: the core's ray-parity test
+    (:func:`curveskel_addon.core.geometry.inside.inside_mesh`, three random directions, majority
+    vote), exact for closed meshes (up to rays grazing an edge, which the vote absorbs) and
+    O(points + faces).
 skeleton_components, skeleton_cycles
     Connected components ``C`` of the joint graph and independent cycles ``B - J + C``.
 mesh_components, mesh_genus, mesh_boundaries, mesh_euler, mesh_nonmanifold_edges
@@ -80,19 +81,28 @@ from every primitive (a silhouette bulging far out of the mesh) are the slow cas
 from __future__ import annotations
 
 import itertools
+import json
+import os
+import time
 
 import numpy as np
-from scipy.sparse.csgraph import connected_components
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
-from .errors import CurveSkelError
-from .mesh_graph import adjacency
-from .rows import col_max, col_min, col_ptp, take_rows
-from .vertex_area import vertex_areas
+from ..core.errors import CurveSkelError
+from ..core.geometry.areas import vertex_areas
+from ..core.geometry.inside import inside_mesh
+from ..core.geometry.mesh_graph import adjacency
+from ..core.geometry.rows import col_ptp
+from ..core.geometry.sections import cross_sections
+from ..core.geometry.segments import closest_on_bones
+from ..core.initialise.pole import bilateral_plane
+from ..core.objective.terms import chain_neighbours
 
 __all__ = ["quality", "sd_round_cone", "round_cone_geometry", "sd_round_cone_radii",
            "take_round_cone_geometry", "silhouette_sdf", "point_triangle_distance",
-           "mesh_distance", "winding_number", "sample_surface", "sample_silhouette_boundary", "inside_mesh", "InsideTest",
+           "mesh_distance", "winding_number", "sample_surface", "sample_silhouette_boundary",
            "bone_points", "closest_mapping", "energy_measures", "skeleton_topology",
            "mesh_topology", "bbox_diagonal", "curve_arrays", "segment_points", "curve_points",
            "segment_segment_distance", "turn_angles", "close_bone_pairs", "fold_pairs", "crossing_pairs",
@@ -100,12 +110,6 @@ __all__ = ["quality", "sd_round_cone", "round_cone_geometry", "sd_round_cone_rad
 
 #: Elements per temporary array in chunked pairwise evaluations (bounds memory to ~tens of MB).
 _CHUNK = 1 << 18
-#: Triangles per grid cell of the inside test (square cells; see _RayGrid).
-_CELL_FACES = 2.0
-#: Cell width ratio between the levels of the inside test's grids (see _RayGrid).
-_LEVEL = 1.5
-#: ... the finest cells at least this many median triangle extents wide.
-_SIDE_MEDIAN = 1.0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -570,250 +574,8 @@ def bone_points(joints, bones, per_bone=10):
 
 
 # ---------------------------------------------------------------------------------------------
-# Inside / outside
+# Inside / outside (the fast test is the core's: :mod:`curveskel_addon.core.geometry.inside`)
 # ---------------------------------------------------------------------------------------------
-class _RayGrid:
-    """Triangles rotated by ``R`` and bucketed in 2D grids orthogonal to the ray (+x after the
-    rotation); built once, then queried for any number of points.
-
-    Every triangle is stored in one level only: the finest of a stack of square grids (cells
-    ``_LEVEL`` times wider from one level to the next; the finest at least as wide as the median
-    triangle and about ``_CELL_FACES`` triangles per cell of the bounding box) where it spans at
-    most two cells per axis, in the 1-4 cells it overlaps there. A point then reads its own
-    cell on every level. At most 4 entries per triangle whatever its shape (the long slivers of
-    a cap would otherwise fill hundreds of cells each) and a radix sort make the build O(faces)
-    with a small constant: the pipeline's queries are a few thousand points, so the build
-    dominates.
-    """
-
-    def __init__(self, V, F, R):
-        self.R = R
-        self.Vr = Vr = V @ R.T
-        self.F = F
-        m = len(F)
-        # the two grid axes (y, z after the rotation) as separate columns: numpy's operations
-        # on (m, 2) arrays with a (2,) operand go one row at a time (2-4x slower; the same values)
-        Y = [np.ascontiguousarray(Vr[:, 1]), np.ascontiguousarray(Vr[:, 2])]
-        lo, hi = [], []
-        for y in Y:
-            a, b, c = y.take(F[:, 0]), y.take(F[:, 1]), y.take(F[:, 2])
-            lo.append(np.minimum(np.minimum(a, b), c))
-            hi.append(np.maximum(np.maximum(a, b), c))
-        del a, b, c
-        self.glo = glo = np.array([y.min() for y in Y]) if len(Vr) else np.zeros(2)
-        self.ghi = np.array([y.max() for y in Y]) if len(Vr) else np.zeros(2)
-        ext = np.maximum(self.ghi - glo, 1e-300)
-        side = np.sqrt(ext[0] * ext[1] * _CELL_FACES / max(m, 1))
-        if m:
-            side = max(side, _SIDE_MEDIAN * float(np.median(np.maximum(hi[0] - lo[0],
-                                                                       hi[1] - lo[1]))))
-        self.levels = []
-        tris, n_prev = [], 0
-        rest = np.arange(m, dtype=np.int32 if m < 2**31 else np.int64)
-        lo_r, hi_r = lo, hi
-        while True:
-            G = np.clip(np.ceil(ext / max(side, 1e-300)), 1, 2048).astype(np.int64)
-            cell = ext / G
-            i0, span = [], []
-            for x in range(2):
-                i = ((lo_r[x] - glo[x]) / cell[x]).astype(np.int32)
-                np.clip(i, 0, np.int32(G[x] - 1), out=i)
-                s = ((hi_r[x] - glo[x]) / cell[x]).astype(np.int32)
-                np.clip(s, 0, np.int32(G[x] - 1), out=s)
-                s -= i
-                i0.append(i)
-                span.append(s)
-            here = (span[0] <= 1) & (span[1] <= 1)
-            # each triangle of this level in every cell it overlaps (1, 2 or 4): one sort of the
-            # triangles by their lower corner's cell; the four runs (corner, +z, +y, +y+z cell)
-            # are then each sorted by cell (a shift keeps the order) and are scattered into cell
-            # order by counting, without sorting the entries
-            h_tri = rest[here]
-            nc = int(G[0] * G[1])
-            base = i0[0][here].astype(np.int64) * G[1] + i0[1][here]
-            o = _radix_argsort(base, nc)
-            base, h_tri = base.take(o), h_tri.take(o)
-            h_span = [span[0][here].take(o), span[1][here].take(o)]
-            runs = []
-            for a, b in ((0, 0), (0, 1), (1, 0), (1, 1)):
-                sel = (h_span[0] >= a) & (h_span[1] >= b)
-                k = base[sel] + (a * G[1] + b)
-                runs.append((k, h_tri[sel], np.bincount(k, minlength=nc)))
-            starts = np.concatenate([[0], np.cumsum(sum(c for _, _, c in runs))])
-            out = np.empty(int(starts[-1]), rest.dtype)
-            before = np.zeros(nc, np.int64)
-            for k, t, c in runs:
-                rank = np.arange(len(k)) - (np.cumsum(c) - c)[k]     # rank in its cell's run
-                out[starts[k] + before[k] + rank] = t
-                before += c
-            tris.append(out)
-            # cell starts into the concatenation of every level's sorted triangles
-            starts = starts + n_prev
-            n_prev += len(out)
-            self.levels.append((G, cell, starts))
-            far = ~here
-            rest = rest[far]
-            lo_r, hi_r = [x[far] for x in lo_r], [x[far] for x in hi_r]
-            if not rest.size:
-                break
-            side *= _LEVEL
-        self.tri = np.concatenate(tris)
-
-    def _sources(self, P2):
-        """Per point (k, 2) (yz, rotated): (k, levels) starts and counts in ``self.tri`` of
-        the triangles of the point's cell on every level."""
-        S, N = [], []
-        for G, cell, starts in self.levels:
-            pc = np.clip(((P2 - self.glo) / cell).astype(np.int64), 0, G - 1)
-            cc = pc[:, 0] * G[1] + pc[:, 1]
-            S.append(starts[cc])
-            N.append(starts[cc + 1] - starts[cc])
-        return np.stack(S, axis=1), np.stack(N, axis=1)
-
-    def parity(self, P):
-        """Parity of crossings of the ray from each point (n, 3) along the grid's direction."""
-        return self.parities(P)[0]
-
-    def parities(self, P):
-        """Parities of crossings of the two rays from each point (n, 3) along the grid's line,
-        forwards and backwards: (n,) int each. On a closed surface they agree unless the line
-        grazes an edge or a vertex, which spoils one side only (the graze is on one side of the
-        point): two independent votes for the price of one grid."""
-        glo, ghi = self.glo, self.ghi
-        Pr = P @ self.R.T
-        parity = np.zeros(len(P), np.int64)
-        back = np.zeros(len(P), np.int64)
-        pin = np.all((Pr[:, 1:] >= glo) & (Pr[:, 1:] <= ghi), axis=1)
-        pids = np.flatnonzero(pin)
-        S, N = self._sources(Pr[pids, 1:])
-        n_per = N.sum(axis=1)
-        # expand (point, triangle) pairs in chunks of points of about _CHUNK pairs
-        cum = np.cumsum(n_per)
-        s = 0
-        while s < len(pids):
-            e = int(np.searchsorted(cum, (cum[s - 1] if s else 0) + _CHUNK, side="right"))
-            e = min(max(e, s + 1), len(pids))
-            nn = N[s:e].ravel()
-            pp = np.repeat(np.repeat(pids[s:e], N.shape[1]), nn)
-            off = np.arange(nn.sum()) - np.repeat(np.cumsum(nn) - nn, nn)
-            tt = self.tri[np.repeat(S[s:e].ravel(), nn) + off]
-            s = e
-            t = self.Vr[self.F[tt]]                      # (pairs, 3, 3)
-            py, pz = Pr[pp, 1], Pr[pp, 2]
-            y, z = t[:, :, 1], t[:, :, 2]
-            # edge functions of (py, pz) against the three edges in the yz-plane
-            w0 = (y[:, 1] - py) * (z[:, 2] - pz) - (y[:, 2] - py) * (z[:, 1] - pz)
-            w1 = (y[:, 2] - py) * (z[:, 0] - pz) - (y[:, 0] - py) * (z[:, 2] - pz)
-            w2 = (y[:, 0] - py) * (z[:, 1] - pz) - (y[:, 1] - py) * (z[:, 0] - pz)
-            hit = ((w0 > 0) & (w1 > 0) & (w2 > 0)) | ((w0 < 0) & (w1 < 0) & (w2 < 0))
-            ws = w0 + w1 + w2
-            with np.errstate(divide="ignore", invalid="ignore"):
-                xh = (w0 * t[:, 0, 0] + w1 * t[:, 1, 0] + w2 * t[:, 2, 0]) / ws
-            ahead = xh > Pr[pp, 0]
-            parity += np.bincount(pp[hit & ahead], minlength=len(P))
-            back += np.bincount(pp[hit & (xh < Pr[pp, 0])], minlength=len(P))
-        return parity % 2, back % 2
-
-
-def _radix_argsort(key, n_keys):
-    """Stable argsort of non-negative integer keys below ``n_keys`` by 16-bit radix passes
-    (numpy's stable sort of 16-bit integers is a counting sort: O(n), 2-3x faster than a
-    comparison sort of int64)."""
-    key = np.asarray(key, np.int64)
-    order = np.arange(len(key))
-    shift = 0
-    while True:
-        digit = ((key[order] >> shift) & 0xFFFF).astype(np.uint16)
-        order = order[np.argsort(digit, kind="stable")]
-        shift += 16
-        if (n_keys - 1) >> shift <= 0:
-            return order
-
-
-class InsideTest:
-    """Inside test of a closed triangle mesh, built once and queried many times.
-
-    Ray parity along ``n_rays`` rays (majority vote): both ways along a random line, then along
-    a second line where those two disagree. Each line is a random rotation (seeded), so rays
-    along symmetry planes of a procedural mesh do not graze its edges; a grazing ray can
-    miscount, the vote absorbs it (a graze spoils one way only). Building costs O(faces) per
-    line, a query O(points) plus the triangles in the points' grid cells.
-
-    Parameters
-    ----------
-    V : (nv, 3) float
-    F : (m, 3) int
-    seed : int
-    n_rays : int, odd
-
-    Examples
-    --------
-    >>> test = InsideTest(V, F)            # doctest: +SKIP
-    >>> test(np.zeros((1, 3)))             # doctest: +SKIP
-    array([ True])
-    """
-
-    def __init__(self, V, F, *, seed=0, n_rays=3):
-        self._V = np.asarray(V, dtype=np.float64)
-        self._F = np.asarray(F, dtype=np.int64)
-        self.n_rays = n_rays
-        rng = np.random.default_rng(seed)
-        self._rotations = []
-        for _ in range((n_rays + 1) // 2):             # two rays (both ways) per line
-            Q, Rm = np.linalg.qr(rng.normal(size=(3, 3)))
-            self._rotations.append(Q * np.sign(np.diag(Rm)))
-        self._grids: list = [None] * len(self._rotations)
-
-    def _grid(self, k):
-        # Built on first use: once a majority agrees the other lines are not needed (on a
-        # closed mesh the two ways along the first line nearly always agree; a grid costs
-        # O(faces)).
-        if self._grids[k] is None:
-            self._grids[k] = _RayGrid(self._V, self._F, self._rotations[k])
-        return self._grids[k]
-
-    def __call__(self, P):
-        """(n,) bool: whether each point of ``P`` (n, 3) is inside."""
-        P = np.asarray(P, dtype=np.float64).reshape(-1, 3)
-        n = self.n_rays
-        need = n // 2 + 1                               # votes that decide
-        votes = np.zeros(len(P), np.int64)
-        open_ = np.arange(len(P))
-        # The rays in order: both ways along the first grid's line, then the next grids' lines
-        # (one way, or both if the votes still need two): one grid decides nearly every point.
-        k = cast = 0
-        while cast < n and open_.size:
-            ahead, back = self._grid(k).parities(P[open_])
-            both = cast + 2 <= n
-            votes[open_] += ahead + back if both else ahead
-            cast += 2 if both else 1
-            k += 1
-            # Still open: no majority yet, and the rays left could still make one.
-            v = votes[open_]
-            open_ = open_[(v < need) & (v + n - cast >= need)]
-        return votes >= need
-
-
-def inside_mesh(P, V, F, *, seed=0, n_rays=3):
-    """Whether each point is inside a closed triangle mesh (ray parity, majority of ``n_rays``).
-
-    One-off form of :class:`InsideTest` (build and query once).
-
-    Parameters
-    ----------
-    P : (n, 3) float
-    V : (nv, 3) float
-    F : (m, 3) int
-    seed : int
-    n_rays : int, odd
-
-    Returns
-    -------
-    (n,) bool
-    """
-    return InsideTest(V, F, seed=seed, n_rays=n_rays)(P)
-
-
 def winding_number(P, V, F):
     """Exact generalized winding number (Jacobson et al. 2013), chunked O(points x faces).
 
@@ -840,26 +602,20 @@ def winding_number(P, V, F):
 # Energy, mapping, topology
 # ---------------------------------------------------------------------------------------------
 def closest_mapping(V, joints, bones):
-    """A skeleton mapping for skeletons that carry none: each vertex to its closest bone point.
+    """A skeleton mapping for skeletons that carry none: each vertex to its closest bone point
+    (:func:`curveskel_addon.core.geometry.segments.closest_on_bones` over every bone).
 
     Returns
     -------
     bone : (n,) int, t : (n,) float
         With the convention of :class:`Skeleton`: ``sigma = t x_i + (1 - t) x_j``.
     """
-    V = np.asarray(V, dtype=np.float64).reshape(-1, 3)
-    joints = np.asarray(joints, dtype=np.float64).reshape(-1, 4)
     bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
     if len(bones) == 0:
         raise CurveSkelError("a skeleton without bones has no mapping")
-    xi, xj = joints[bones[:, 0], :3], joints[bones[:, 1], :3]
-
-    def fn(pi, pj):
-        return _point_segment_distance(V[pi], xj[pj], xi[pj])
-
-    _, arg = _min_over_primitives(V, (xi + xj) / 2, np.linalg.norm(xi - xj, axis=1) / 2, fn)
-    t = _segment_param(V, xj[arg], xi[arg])     # 0 at x_j, 1 at x_i
-    return arg, t
+    bone, t, _ = closest_on_bones(np.asarray(V, dtype=np.float64).reshape(-1, 3),
+                                  np.asarray(joints, dtype=np.float64).reshape(-1, 4), bones)
+    return bone, t
 
 
 def energy_measures(V, F, joints, bones, bone, t, D):
@@ -969,8 +725,6 @@ def quality(V, F, skeleton, *, n_samples=20000, seed=0, bone_samples=10, referen
     >>> q = quality(V, F, skeletonize(V, F))                 # doctest: +SKIP
     >>> q["recon_mean"], q["inside"], q["topology_match"]    # doctest: +SKIP
     """
-    import time
-
     V = np.asarray(V, dtype=np.float64).reshape(-1, 3)
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
     joints = np.asarray(skeleton.joints, dtype=np.float64).reshape(-1, 4)
@@ -1097,9 +851,6 @@ def curve_arrays(skeleton):
     X : (J, 3) float, bones : (B, 2) int
         Bones joining a joint to itself are dropped.
     """
-    import json
-    import os
-
     if isinstance(skeleton, (str, os.PathLike)):
         with open(skeleton) as fh:
             skeleton = json.load(fh)
@@ -1356,9 +1107,6 @@ def crossing_pairs(joints, bones, D, *, within=CROSS_WITHIN, far=FOLD_FAR):
 def _far_along(X, bones, pairs, far_abs, D):
     """The ``pairs`` of bones (no shared joint) more than ``far_abs`` apart along the skeleton,
     in one connected part of it."""
-    from scipy.sparse import csr_matrix
-    from scipy.sparse.csgraph import dijkstra
-
     if len(pairs) == 0:
         return pairs
     e1, e2 = bones[pairs[:, 0]], bones[pairs[:, 1]]
@@ -1483,7 +1231,6 @@ def radius_pinches(r, bones, ratio=PINCH_RATIO):
     >>> radius_pinches(np.array([1.0, 0.3, 1.0, 0.9]), np.array([[0, 1], [1, 2], [2, 3]])).tolist()
     [1]
     """
-    from .centreline import chain_neighbours
     r = np.abs(np.asarray(r, np.float64))
     chain, a, b = chain_neighbours(bones, len(r))
     return chain[r[chain] < ratio * np.minimum(r[a], r[b])]
@@ -1538,7 +1285,7 @@ def mirror_asymmetry(V, skeleton, D) -> float | None:
     """How far a skeleton of a mirror-symmetric mesh is from its own mirror image, / D.
 
     The mesh's mirror plane is its one principal plane across which it is its own mirror image
-    (:func:`.pole.bilateral_plane`); the measure is the mean of
+    (:func:`curveskel_addon.core.initialise.pole.bilateral_plane`); the measure is the mean of
     :func:`curve_distances` both ways between the skeleton and its reflection across that plane.
     Why: a rigger mirrors a character's left side onto its right; a skeleton whose paired limbs
     branch off at different places (the elephant's front legs 25 units apart, the human's neck
@@ -1558,8 +1305,6 @@ def mirror_asymmetry(V, skeleton, D) -> float | None:
     -------
     float, or None when the mesh is not mirror-symmetric across exactly one principal plane.
     """
-    from .pole import bilateral_plane
-
     plane = bilateral_plane(np.asarray(V, np.float64))
     if plane is None:
         return None
@@ -1607,8 +1352,6 @@ def section_offsets(V, F, skeleton, D=None, *, step=SHAPE_COARSE_STEP, reach=0.2
     >>> found, off = section_offsets(V, F, ([[-3, 0.1, 0], [3, 0.1, 0]], [[0, 1]]))
     ... # doctest: +SKIP
     """
-    from .cross_section import section_loops
-
     V = np.asarray(V, np.float64)
     if D is None:
         D = bbox_diagonal(V, F)
@@ -1624,8 +1367,8 @@ def section_offsets(V, F, skeleton, D=None, *, step=SHAPE_COARSE_STEP, reach=0.2
     t = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n) + 0.5) / n[bone]
     P = a[bone] + t[:, None] * (b - a)[bone]
     T = ((b - a) / L[:, None])[bone]
-    C, extent, _ = section_loops(V, F, P, T, np.full(len(P), reach * D))
-    ok = np.isfinite(extent)
+    sec = cross_sections(V, np.asarray(F, np.int64), P, T, reach * D)
+    ok, C = sec.found, sec.centroid
     out = (float(ok.mean()), np.linalg.norm(C[ok] - P[ok], axis=1) / D)
     return out + ((C[ok],) if centroids else ())
 

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
+from scipy.spatial import cKDTree
 
 from ..core.errors import CurveSkelError
 from .graph_root import central_joints
@@ -482,7 +483,7 @@ def mirror_plane(V, *, tol: float = 0.01, sample: int = 2000, seed: int = 0, all
 
     For naming bones (``.L``/``.R``): it prefers the object's local X axis, as Blender's X-Axis
     Mirror does. The method's own test of symmetry, which must not depend on the pose, is
-    :func:`.pole.bilateral_plane`.
+    :func:`..core.initialise.pole.bilateral_plane`.
 
     Candidate normals are the three coordinate axes and the three principal axes of the vertices,
     through their centroid; each candidate is refined by matching every sampled vertex to the
@@ -508,8 +509,6 @@ def mirror_plane(V, *, tol: float = 0.01, sample: int = 2000, seed: int = 0, all
     -------
     MirrorPlane or None (a list of MirrorPlane with ``all_planes``)
     """
-    from scipy.spatial import cKDTree
-
     P = np.asarray(V, dtype=np.float64).reshape(-1, 3)
     diag = float(np.linalg.norm(np.ptp(P, axis=0))) if len(P) else 0.0
     if len(P) < 4 or diag <= 0:

@@ -81,7 +81,7 @@ def skin_weights(layout: RigLayout, bone, t, *, blend: float = 0.25,
 
     Examples
     --------
-    >>> from curveskel_addon.core.rig_layout import rig_layout
+    >>> from curveskel_addon.rig.rig_layout import rig_layout
     >>> J = [[0, 0, 0, .1], [1, 0, 0, .1], [2, 0, 0, .1], [3, 0, 0, .1]]
     >>> lay = rig_layout(J, [[0, 1], [1, 2], [2, 3]], root=0)
     >>> idx, w = skin_weights(lay, [1, 1], [0.5, 1.0])      # middle of bone 1; its joint with bone 0
@@ -258,7 +258,7 @@ def project_on_bones(points, joints, bones, *, k: int = 8):
 
     Candidate bones of a point are those of its ``k`` nearest samples along the bones (every bone
     when there are at most ``k``); the exact closest point over the candidates comes from
-    :func:`mapping.closest_on_bones`. Unlike the skeletonizer's own mapping this ignores the
+    :func:`..core.geometry.segments.closest_on_bones`. Unlike the skeletonizer's own mapping this ignores the
     mesh's topology (a vertex may land on a neighbouring branch that is closer in space).
 
     Parameters
@@ -501,7 +501,7 @@ def _csr(data, indices, indptr, n):
 def _closest_bones(P, H, T, ids):
     """Closest of the segments H[ids]-T[ids] for each point (a position in ``ids``); the same
     choice as :func:`project_on_bones` (the first of equally close bones), without its KD-tree:
-    :func:`mapping.closest_on_bones` with every segment a candidate (scored in float32, near-ties
+    :func:`..core.geometry.segments.closest_on_bones` with every segment a candidate (scored in float32, near-ties
     compared exactly)."""
     n, B = len(P), len(ids)
     if n == 0 or B == 1:

@@ -1,16 +1,18 @@
 """Registration, the sidebar panel's settings and buttons, preferences, and import hygiene."""
 
+import json
 import subprocess
 import sys
 from pathlib import Path
 
 import bpy
+import numpy as np
 import pytest
 from meshes import capsule
 
 import curveskel_addon
 from curveskel_addon import panel, registration, results
-from curveskel_addon.core import SkeletonParams
+from curveskel_addon.core import SkeletonParams, skeletonize
 from curveskel_addon.properties import (
     ADVANCED_NAMES,
     OPTION_NAMES,
@@ -71,18 +73,27 @@ def test_settings_defaults_match_the_core():
     assert CURVESKEL_AddonPreferences.bl_idname == "curveskel_addon"
 
 
-def test_panel_settings_reach_the_operator(make_mesh):
-    """What the Generate button does: copy the scene settings into the operator's properties."""
+def test_panel_settings_reach_the_operator(make_mesh, mesh_arrays):
+    """What the Generate button does: copy the scene settings into the operator's properties,
+    which reach the core: the armature is the core's skeleton for those settings."""
     ob = make_mesh("Cylinder", *capsule())
     assert bpy.context.view_layer.objects.active == ob
     s = bpy.context.scene.curveskel
-    s.spacing, s.max_iterations, s.make_silhouette = 0.08, 5, False
+    s.spacing, s.smoothness, s.prune, s.max_joints = 0.08, 3.0, 0.5, 6
+    s.max_iterations, s.make_silhouette = 5, False
     assert bpy.ops.curveskel.generate(**settings_dict(s)) == {'FINISHED'}
     found = results.find_result(ob.name)
     assert found["silhouette"] is None
     arm = found["armature"]
-    assert arm["curveskel_iterations"] <= 5
-    assert '"spacing": 0.08' in arm["curveskel_params"]
+    params = json.loads(arm["curveskel_params"])
+    assert {k: params[k] for k in ("spacing", "smoothness", "prune", "max_joints",
+                                   "max_iterations")} == {
+        "spacing": 0.08, "smoothness": 3.0, "prune": 0.5, "max_joints": 6, "max_iterations": 5}
+    ref = skeletonize(*mesh_arrays(ob), SkeletonParams(spacing=0.08, smoothness=3.0, prune=0.5,
+                                                       max_joints=6, max_iterations=5))
+    assert ref.n_joints <= 6
+    np.testing.assert_allclose(np.reshape(arm["curveskel_joints"], (-1, 4)), ref.joints,
+                               rtol=1e-7, atol=1e-9)
 
 
 def test_reset_settings_without_preferences_restores_defaults():
@@ -122,9 +133,17 @@ def test_figures_read_the_same_after_save_and_reload(make_mesh, tmp_path):
     assert again == pytest.approx(figs)
 
 
-def test_core_imports_neither_bpy_nor_trimesh():
-    code = ("import sys; import curveskel_addon.core as c; from curveskel_addon.core import graph_root; "
-            "bad = [m for m in ('bpy', 'trimesh') if m in sys.modules]; print(bad); sys.exit(bool(bad))")
+def test_core_imports_neither_bpy_nor_trimesh_nor_the_layers_above_it():
+    """Every module of the core imported: no bpy, no trimesh, and nothing of what sits on top of
+    the core (measures, rig, command line, mesh files, the Blender layer)."""
+    code = ("import sys, pkgutil, importlib, curveskel_addon.core as c\n"
+            "for m in pkgutil.walk_packages(c.__path__, c.__name__ + '.'):\n"
+            "    importlib.import_module(m.name)\n"
+            "above = ('curveskel_addon.measure', 'curveskel_addon.rig', 'curveskel_addon.cli', "
+            "'curveskel_addon.mesh_files', 'curveskel_addon.run_summary', "
+            "'curveskel_addon.registration')\n"
+            "bad = [m for m in sys.modules if m in ('bpy', 'trimesh') or m.startswith(above)]\n"
+            "print(bad); sys.exit(bool(bad))")
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
     assert out.returncode == 0, out.stdout + out.stderr
 

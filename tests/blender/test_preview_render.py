@@ -51,7 +51,7 @@ def figure(across):
     V, F, _ = meshes.six_part_figure()
     V = V * (across / np.ptp(V[:, 0]))
     ob = headless.mesh_object_from_arrays("figure", V, F)
-    headless.generate(ob)
+    headless.generate(ob, spacing=0.08)          # the framing, not the skeleton's detail
     return ob
 
 
@@ -71,7 +71,7 @@ def test_blank_render_is_an_error_and_writes_nothing(tmp_path):
     picture kept, no temporary file, the scene's helpers removed."""
     V, F = meshes.capsule(length=3.0, n_around=16, n_body=12)
     ob = headless.mesh_object_from_arrays("cap", V, F)
-    headless.generate(ob, make_silhouette=False)
+    headless.generate(ob, make_silhouette=False, spacing=0.08)
     ob.hide_render = True
     path = tmp_path / "cap.png"
     path.write_bytes(b"old")
@@ -94,7 +94,7 @@ def write_obj(path, V, F):
 def test_cli_render_of_a_mesh_1500_units_across(tmp_path):
     V, F = meshes.capsule(length=3.0, n_around=16, n_body=12)
     mesh = write_obj(tmp_path / "big.obj", V * (1500.0 / np.ptp(V, axis=0).max()), F)
-    r = run_cli(mesh, "--render", tmp_path / "big.png")
+    r = run_cli(mesh, "--render", tmp_path / "big.png", "--spacing", "0.08")
     assert r.returncode == 0, r.stderr[-2000:]
     assert f"wrote       {tmp_path / 'big.png'}" in r.stdout
     assert_framed(tmp_path / "big.png")
@@ -106,7 +106,7 @@ def test_cli_blank_render_is_an_error(tmp_path):
     2 with one line that says so, no PNG, no temporary file."""
     V, F = meshes.capsule(length=3.0, n_around=16, n_body=12)
     mesh = write_obj(tmp_path / "speck.obj", V * (1e-7 / np.ptp(V, axis=0).max()), F)
-    r = run_cli(mesh, "--render", tmp_path / "speck.png")
+    r = run_cli(mesh, "--render", tmp_path / "speck.png", "--spacing", "0.08")
     assert r.returncode == 2, r.stdout[-2000:] + r.stderr[-2000:]
     errors = [ln for ln in r.stderr.splitlines() if ln.startswith("error:")]
     assert len(errors) == 1 and re.search(r"preview render of 'speck' is blank", errors[0]), r.stderr

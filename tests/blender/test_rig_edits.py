@@ -23,6 +23,10 @@ from curveskel_addon.export import export_rig
 from curveskel_addon.gltf_layout import read_glb
 from test_rigging import evaluated, leaf_and_arm_bone, mesh_object, rigged, rotate, weight_matrix
 
+#: A coarser Detail Size where a test is about the rig's bookkeeping, not the skeleton's detail
+#: (the core's search takes seconds a run at the default).
+FAST = {"spacing": 0.08}
+
 
 @contextmanager
 def edit_bones(arm):
@@ -173,7 +177,7 @@ def test_added_bones_deforming_and_not():
 def test_rename_mesh_then_bind_and_regenerate_gives_one_rig():
     V, F = meshes.bent_capsule()
     ob = mesh_object("L", V, F)
-    assert bpy.ops.curveskel.generate('EXEC_DEFAULT', bind=True) == {'FINISHED'}
+    assert bpy.ops.curveskel.generate('EXEC_DEFAULT', bind=True, **FAST) == {'FINISHED'}
     arm = bpy.data.objects["L.skeleton"]
     ob.name = "Leg"
     arm.name = "my rig"
@@ -184,7 +188,7 @@ def test_rename_mesh_then_bind_and_regenerate_gives_one_rig():
     assert bpy.ops.curveskel.bind.poll()
     assert bpy.ops.curveskel.bind() == {'FINISHED'}
     check_bound(ob, arm)
-    assert bpy.ops.curveskel.generate('EXEC_DEFAULT', bind=True) == {'FINISHED'}
+    assert bpy.ops.curveskel.generate('EXEC_DEFAULT', bind=True, **FAST) == {'FINISHED'}
     arms = [o for o in bpy.data.objects if o.type == 'ARMATURE']
     sils = [o for o in bpy.data.objects if o.name.endswith(".silhouette")]
     assert [a.name for a in arms] == ["Leg.skeleton"] and [s.name for s in sils] == ["Leg.silhouette"]
@@ -308,12 +312,20 @@ def test_symmetric_mesh_gets_mirrored_left_right_pairs():
     flip = [paired.index(bpy.utils.flip_name(n)) for n in paired]
     on_pairs = Wp.sum(axis=1) > 1 - 1e-6
     # the weights are mirrored on the arms up to the surface smoothing, which follows the
-    # triangulation (not mirror-symmetric); away from the junction, where a skeleton may
-    # branch differently left and right
+    # triangulation (not mirror-symmetric: the tubes' quads are split the same way along +x);
+    # away from the junction, where a skeleton may branch differently left and right. Where
+    # the bones' blend zones fall on the hands, the smoothing leaves up to 0.15 of a weight
+    # unmirrored on 6 % of the arms' vertices (the skeleton of today: 6 bones an arm)
     dw = np.abs(Wp[mirror_of][:, flip] - Wp).max(axis=1)
     mirrored = dw < 0.02
     arms = on_pairs & (np.abs(V[:, 0]) > 1.5)
-    assert mirrored[arms].mean() > 0.98 and dw[arms].max() < 0.25
+    assert mirrored[arms].mean() > 0.9 and dw[arms].max() < 0.25
+    # without the smoothing, the weights of mirrored bones are mirrored exactly
+    bind_mesh(ob, arm, smooth=0.0)
+    W0 = weight_matrix(ob, paired)
+    assert np.abs(W0[mirror_of][:, flip] - W0)[arms].max() < 1e-6
+    bind_mesh(ob, arm)
+    assert np.array_equal(weight_matrix(ob, paired), Wp)
     both = on_pairs & mirrored
     assert both.sum() > 100
     first = min(left, key=lambda nm: bones[nm].head_local.x)         # the chain's first .L bone
@@ -357,7 +369,7 @@ def test_bind_panel_and_menu_offer_every_method():
     ob = mesh_object("L", V, F)
     log = _draw(panel.CURVESKEL_PT_bind, bpy.context)
     assert ("operator", "curveskel.bind") in log and any(e[0] == "label" for e in log)
-    assert bpy.ops.curveskel.generate('EXEC_DEFAULT') == {'FINISHED'}
+    assert bpy.ops.curveskel.generate('EXEC_DEFAULT', **FAST) == {'FINISHED'}
     bpy.context.view_layer.objects.active = ob
     log = _draw(panel.CURVESKEL_PT_bind, bpy.context)
     assert {e[2] for e in log if e[0] == "opset" and e[1] == "method"} == {m[0] for m in METHOD_ITEMS}

@@ -251,7 +251,8 @@ def test_generate_again_keeps_the_bound_mesh_in_place():
     V, F, _ = skeleton_of("bent_capsule")
     ob = mesh_object("L", V, F)
     ob.matrix_world = MESH_M
-    assert bpy.ops.curveskel.generate('EXEC_DEFAULT', bind=True, make_silhouette=False) == {'FINISHED'}
+    assert bpy.ops.curveskel.generate('EXEC_DEFAULT', bind=True, make_silhouette=False,
+                                      spacing=0.08) == {'FINISHED'}
     arm = bpy.data.objects["L.skeleton"]
     assert ob.parent is arm
     arm.location.x += 2.0                 # the user moves the rig; the mesh follows
@@ -260,7 +261,8 @@ def test_generate_again_keeps_the_bound_mesh_in_place():
     assert not same_matrix(world, MESH_M)
     for bind in (True, False):
         bpy.context.view_layer.objects.active = ob
-        assert bpy.ops.curveskel.generate('EXEC_DEFAULT', bind=bind, make_silhouette=False) == {'FINISHED'}
+        assert bpy.ops.curveskel.generate('EXEC_DEFAULT', bind=bind, make_silhouette=False,
+                                          spacing=0.08) == {'FINISHED'}
         bpy.context.view_layer.update()
         new = bpy.data.objects["L.skeleton"]
         assert (ob.parent is new) if bind else (ob.parent is None)

@@ -24,6 +24,11 @@ from curveskel_addon import results
 ROOT = Path(__file__).resolve().parents[2]
 CLI = ROOT / "scripts" / "skeletonize.py"
 CAPSULE = capsule(n_around=16, n_body=20)
+#: A coarser Detail Size: these tests are about robustness, not the skeleton's detail, and the
+#: core's search takes seconds at the default (the command line runs it twice with a Blender
+#: output: its own run and the operator's)
+FAST = {"spacing": 0.08}
+FAST_ARGS = ("--spacing", "0.08")
 
 
 def _joints(name):
@@ -37,7 +42,7 @@ def _joints(name):
 
 def _generate(make_mesh, name, V, F):
     make_mesh(name, V, F)
-    assert bpy.ops.curveskel.generate() == {'FINISHED'}
+    assert bpy.ops.curveskel.generate(**FAST) == {'FINISHED'}
     return _joints(name)
 
 
@@ -78,7 +83,7 @@ def test_modal_operator_cleans_up_on_any_exception(make_mesh, monkeypatch, name)
 
     what, event = MODAL_FAILURES[name]
     make_mesh("Cylinder", *CAPSULE)
-    ctx, op = FakeContext(), modal_operator(interactive=True, update_every=1)
+    ctx, op = FakeContext(), modal_operator(interactive=True, update_every=1, **FAST)
     assert op._modal_start(ctx) == {'RUNNING_MODAL'}
     assert len(ctx.window_manager.timers) == 1 and ctx.area.header is not None
     assert results.find_result("Cylinder")["silhouette"] is not None        # the live preview
@@ -103,7 +108,7 @@ def test_modal_operator_cleans_up_on_any_exception(make_mesh, monkeypatch, name)
 
 def test_modal_start_failing_after_the_preview_leaves_nothing(make_mesh, monkeypatch):
     make_mesh("Cylinder", *CAPSULE)
-    ctx, op = FakeContext(), modal_operator(interactive=True, update_every=1)
+    ctx, op = FakeContext(), modal_operator(interactive=True, update_every=1, **FAST)
     monkeypatch.setattr(ctx.window_manager, "modal_handler_add", _boom)
     assert op._modal_start(ctx) == {'CANCELLED'}
     assert ctx.window_manager.timers == [] and ctx.area.header is None
@@ -114,7 +119,7 @@ def test_modal_start_failing_after_the_preview_leaves_nothing(make_mesh, monkeyp
 def test_modal_operator_on_inverted_normals_matches_the_clean_mesh(make_mesh):
     ref = _generate(make_mesh, "Clean", *CAPSULE)
     make_mesh("Inverted", *_inverted())
-    ctx, op = FakeContext(), modal_operator(interactive=True, update_every=50)
+    ctx, op = FakeContext(), modal_operator(interactive=True, update_every=50, **FAST)
     assert op._modal_start(ctx) == {'RUNNING_MODAL'}
     for _ in range(1000):
         if op.modal(ctx, fake_event('TIMER')) == {'FINISHED'}:
@@ -131,11 +136,11 @@ def mesh_file(tmp_path_factory):
 def test_blend_over_an_existing_file_leaves_no_backup_unless_asked(mesh_file, tmp_path):
     out = tmp_path / "scene.blend"
     out.write_bytes(b"old")
-    r = run_cli(mesh_file, "--blend", out)
+    r = run_cli(mesh_file, "--blend", out, *FAST_ARGS)
     assert r.returncode == 0, r.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.blend"]
     assert out.read_bytes()[:4] != b"old"
-    r = run_cli(mesh_file, "--blend", out, "--blend-backup")
+    r = run_cli(mesh_file, "--blend", out, "--blend-backup", *FAST_ARGS)
     assert r.returncode == 0, r.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.blend", "scene.blend1"]
 
@@ -145,7 +150,7 @@ def test_bind_with_blend_saves_the_bound_mesh_importing_it_once(mesh_file, tmp_p
     deforming bone, the Armature modifier); the mesh is read into Blender once (the operator
     binds what it saves; a second rig built beside it was thrown away)."""
     out = tmp_path / "bound.blend"
-    r = run_cli(mesh_file, "--bind", "--blend", out)
+    r = run_cli(mesh_file, "--bind", "--blend", out, *FAST_ARGS)
     assert r.returncode == 0, r.stderr
     assert r.stdout.count("import of") + r.stderr.count("import of") <= 1
     bpy.ops.wm.read_homefile(use_empty=True)
@@ -165,7 +170,7 @@ def test_bind_with_blend_saves_the_bound_mesh_importing_it_once(mesh_file, tmp_p
 def test_a_full_disk_keeps_the_old_output_and_exits_non_zero(mesh_file, tmp_path, flag, name):
     out = tmp_path / name
     out.write_bytes(b"old")
-    r = run_cli(mesh_file, flag, out, limit=20000)     # every one of them is larger than that
+    r = run_cli(mesh_file, flag, out, *FAST_ARGS, limit=20000)     # every one of them is larger than that
     assert r.returncode == 2, r.stdout + r.stderr
     assert f"could not write {flag} {out}" in r.stderr and "previous file is kept" in r.stderr
     assert f"wrote       {out}" not in r.stdout
@@ -182,7 +187,7 @@ def test_ctrl_c_during_the_blender_stage_is_interrupted_or_complete(mesh_file, t
     out = tmp_path / "scene.blend"
     # progress lines from the start (no delay): the Blender stage's line says when it begins
     env = {**os.environ, "CURVESKEL_PROGRESS_DELAY": "0"}
-    p = subprocess.Popen([sys.executable, str(CLI), str(mesh_file), "--blend", str(out)],
+    p = subprocess.Popen([sys.executable, str(CLI), str(mesh_file), "--blend", str(out), *FAST_ARGS],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     seen = False
     for line in p.stderr:

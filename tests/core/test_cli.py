@@ -34,36 +34,68 @@ def test_skeletonizes_every_supported_format_and_writes_json(tmp_path, suffix):
     out = tmp_path / "o.json"
     r = run(path, "--json", out)
     assert r.returncode == 0, r.stderr
-    for word in ("vertices", "component", "joints", "bones", "E0", "iterations", "time"):
+    for word in ("vertices", "component", "joints", "bones", "J ", "stages", "E ", "time"):
         assert word in r.stdout
     d = json.loads(out.read_text())
     assert d["format"] == "curveskel-skeleton/1"
     n_in = len(V) if suffix != ".stl" else 3 * len(F)          # STL stores a vertex per corner
     assert len(d["mapping"]["bone"]) == n_in
-    # E after every stage (the stages optimise different things: it need not fall each time);
-    # the final one is the returned skeleton's
+    # the paper's E after every logged stage of the search (J is what falls, not E); the final
+    # one is the returned skeleton's
     assert d["energy"]["final"] == d["energy"]["history"][-1]
     assert len(d["energy"]["history"]) == len(d["meta"]["stages"])
 
 
-def test_energy_line_says_what_the_fit_reached_and_what_the_skeleton_has(tmp_path):
-    """The fit of E lowers E; the stages after it fit the radii to the silhouette, which E does
-    not measure (a capsule: 0.046 after the fit, 62.8 returned). The summary line must not read
-    as if the optimisation made E worse: E after the fit first, the returned skeleton's after."""
-    from curveskel_addon.core import Skeleton
+def _terms(line):
+    """{name: (weight, value)} of the summary's ``terms`` line."""
+    out = {}
+    for part in line.split(" = ", 1)[1].split(" + "):
+        name, rest = part.split(" ", 1)
+        weight, value = rest.split(" x ") if " x " in rest else ("1", rest)
+        out[name] = (float(weight), float(value))
+    return out
 
+
+def test_the_summary_prints_J_and_its_terms(tmp_path):
+    """Issue 30: the CLI prints J and its terms. J of the first stage -> the returned skeleton's
+    (the lowest logged), every term of J with its weight, and they add up to J."""
     V, F = capsule(n_around=16, n_body=20)
     path = tmp_path / "c.obj"
     write_obj(path, V, F)
     out = tmp_path / "o.json"
     r = run(path, "--json", out)
     assert r.returncode == 0, r.stderr
-    s = Skeleton.load(str(out)).summary()
-    stages = {st["stage"]: st["energy"] for st in json.loads(out.read_text())["meta"]["stages"]}
-    assert s["E_fit"] == stages["fit"] and s["E"] == stages["polish"]
-    line = next(ln for ln in r.stdout.splitlines() if ln.startswith("energy"))
-    assert f"E {s['E_fit']:.6g} in" in line
-    assert (f"E {s['E']:.6g} for the returned skeleton" in line) == (s["E"] != s["E_fit"])
+    meta = json.loads(out.read_text())["meta"]
+    stages = meta["stages"]
+    assert meta["J"] == min(st["J"] for st in stages) == stages[-1]["J"]
+    lines = {ln.split(None, 1)[0]: ln.split(None, 1)[1] for ln in r.stdout.splitlines() if ln.strip()}
+    assert lines["objective"].startswith(f"J {stages[0]['J']:.6g} -> {meta['J']:.6g} in "
+                                         f"{len(stages)} stages")
+    terms = _terms(lines["terms"])
+    assert lines["terms"].startswith(f"J {meta['J']:.6g} = ")
+    assert set(terms) == set(meta["terms"]) - {"E"}
+    for name, (_, value) in terms.items():
+        assert value == pytest.approx(meta["terms"][name], rel=1e-3, abs=1e-300)
+    assert terms["joints"][1] == len(json.loads(out.read_text())["joints"])
+    assert sum(w * v for w, v in terms.values()) == pytest.approx(meta["J"], rel=1e-3)
+    # the paper's E of the first and the last stage
+    assert lines["energy"].startswith(f"E {stages[0]['terms']['E']:.6g} -> "
+                                      f"{stages[-1]['terms']['E']:.6g} ")
+
+
+def test_the_paper_solver_prints_E_and_its_iterations(tmp_path):
+    V, F = capsule(n_around=16, n_body=20)
+    path = tmp_path / "c.obj"
+    write_obj(path, V, F)
+    out = tmp_path / "o.json"
+    r = run(path, "--json", out, "--paper")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(out.read_text())
+    line = next(ln for ln in r.stdout.splitlines() if ln.startswith("objective"))
+    fit = [st for st in d["meta"]["stages"] if st["stage"] == "fit"]
+    assert f"E {d['energy']['initial']:.6g} -> {d['energy']['final']:.6g} in " \
+           f"{fit[-1]['iterations']} iterations" in line and "solver paper" in line
+    assert not any(ln.startswith("terms") for ln in r.stdout.splitlines())     # J is E there
 
 
 def test_obj_vertex_order_is_kept(tmp_path):
@@ -127,19 +159,15 @@ def test_help_explains_every_method_parameter():
         assert h.index("\n  --" + name.replace("_", "-")) > adv
 
 
-def test_subsampled_stages_are_said_on_the_console_and_in_meta(tmp_path):
-    # above --max-fit-points the fit uses an area-weighted subset: the summary says so (issue 11:
-    # nothing approximated silently); a run on all points prints no such line
+def test_the_summary_says_how_many_surface_samples_J_is_measured_on(tmp_path):
+    # J integrates over surface samples, not the vertices (issue 11: nothing approximated
+    # silently): the summary says how many, as meta does
     V, F = capsule(n_around=16, n_body=20)
     path = tmp_path / "capsule.obj"
     write_obj(path, V, F)
     out = tmp_path / "o.json"
-    r = run(path, "--json", out, "--max-fit-points", 200)
-    assert r.returncode == 0, r.stderr
-    line = [x for x in r.stdout.splitlines() if x.startswith("sampled")]
-    assert len(line) == 1 and "fit on 200 " in line[0] and f"of {len(V):,}" in line[0]
-    meta = json.loads(out.read_text())["meta"]
-    assert meta["fit_points_subset"] is True and meta["fit_points"] == 200
-    assert meta["medial_points_subset"] is False and meta["medial_points"] == len(V)
     r = run(path, "--json", out)
-    assert r.returncode == 0 and not any(x.startswith("sampled") for x in r.stdout.splitlines())
+    assert r.returncode == 0, r.stderr
+    n = json.loads(out.read_text())["meta"]["samples"]
+    line = next(ln for ln in r.stdout.splitlines() if ln.startswith("objective"))
+    assert n > 0 and f"over {n:,} surface samples" in line

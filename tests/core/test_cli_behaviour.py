@@ -41,7 +41,7 @@ def test_nothing_is_shown_in_the_first_second():
     p = Progress(s, tty=True, delay=1.0, clock=clock)
     clock.now += 0.5
     p("first_approximation", 1.0)
-    p("optimise", 0.3)
+    p("fit", 0.3)
     p.close()
     assert s.getvalue() == ""
 
@@ -50,14 +50,14 @@ def test_a_terminal_gets_one_line_redrawn_with_the_stage_and_a_bar():
     clock, s = Clock(), io.StringIO()
     p = Progress(s, tty=True, delay=1.0, clock=clock)
     clock.now += 1.5
-    p("centre", 1.0)
+    p("first_approximation", 1.0)
     clock.now += 0.5
-    p("optimise", 0.5)
+    p("merge", 0.5)
     text = s.getvalue()
     assert "\n" not in text and text.count("\r") == 2
     first, second = text.split("\r")[1:]
-    assert first.startswith("centring ") and "[" + "#" * 24 + "]" in first and "100%" in first
-    assert second.startswith("fitting E ") and "[" + "#" * 12 + "-" * 12 + "]" in second
+    assert first.startswith("first approximation ") and "[" + "#" * 24 + "]" in first and "100%" in first
+    assert second.startswith("optimising ") and "[" + "#" * 12 + "-" * 12 + "]" in second
     assert " 50%" in second and "2.0 s" in second
     p.close()
     assert s.getvalue().endswith("\r" + " " * len(second) + "\r")          # cleared at the end
@@ -66,10 +66,11 @@ def test_a_terminal_gets_one_line_redrawn_with_the_stage_and_a_bar():
 def test_redraws_within_a_stage_are_at_most_ten_a_second():
     clock, s = Clock(), io.StringIO()
     p = Progress(s, tty=True, delay=0.0, clock=clock)
-    for k in range(50):                     # 50 iterations in 0.25 s
+    for k in range(50):                     # 50 stages of the search in 0.25 s
         clock.now += 0.005
-        p("optimise", k / 50)
-    assert s.getvalue().count("\r") == 3    # at 0, 0.1 and 0.2 s
+        p(("fit", "merge", "prune", "split", "contract")[k % 5], k / 50)
+    # the search's stages are one stage on the bar: redrawn at 0, 0.1 and 0.2 s only
+    assert s.getvalue().count("\r") == 3
 
 
 def test_a_log_gets_one_plain_line_per_stage():
@@ -77,13 +78,13 @@ def test_a_log_gets_one_plain_line_per_stage():
     p = Progress(s, tty=False, delay=1.0, clock=clock)
     p("read", 0.0)                                          # before the delay: not shown
     clock.now += 1.2
-    for k in range(5):
-        p("optimise", k / 5)
+    for k in range(6):                                      # the search: one line for all of it
+        p(("initialise", "fit", "merge", "fit", "prune", "done")[k], k / 5)
     clock.now += 0.3
-    p("polish", 0.0)
+    p("write", 0.0)
     p.close()
-    assert s.getvalue() == ("progress    fitting E (1.2 s)\n"
-                            "progress    radii and polish (1.5 s)\n")
+    assert s.getvalue() == ("progress    optimising (1.2 s)\n"
+                            "progress    writing (1.5 s)\n")
 
 
 def test_a_log_gets_no_line_while_the_mesh_is_read():
@@ -109,7 +110,7 @@ def test_quiet_shows_nothing_and_a_broken_stream_stops_nothing():
     clock = Clock()
     q = io.StringIO()
     p = Progress(q, enabled=False, tty=True, delay=0.0, clock=clock)
-    p("optimise", 0.5)
+    p("fit", 0.5)
     assert q.getvalue() == ""
 
     class Broken(io.StringIO):
@@ -117,7 +118,7 @@ def test_quiet_shows_nothing_and_a_broken_stream_stops_nothing():
             raise BrokenPipeError(32, "Broken pipe")
 
     b = Progress(Broken(), tty=True, delay=0.0, clock=clock)
-    b("optimise", 0.5)                        # no exception: the run goes on, silently
+    b("fit", 0.5)                        # no exception: the run goes on, silently
     assert not b.enabled
 
 
@@ -143,8 +144,7 @@ def test_a_run_on_a_terminal_draws_the_bar_on_stderr_only(mesh_file, tmp_path):
     os.close(master)
     err = b"".join(chunks).decode()
     assert p.returncode == 0, err
-    for stage in ("reading the mesh", "first approximation", "centring", "fitting E", "radii and polish",
-                  "writing"):
+    for stage in ("reading the mesh", "first approximation", "optimising", "writing"):
         assert "\r" + stage in err, (stage, err)
     assert "[" + "#" * 24 + "]" in err and "\n" not in err.replace("\r\n", "\n").strip("\n")
     assert "progress" not in out.decode() and out.decode().startswith("mesh ")
@@ -155,7 +155,7 @@ def test_a_run_into_a_log_gets_plain_lines(mesh_file):
     assert r.returncode == 0, r.stderr
     lines = r.stderr.splitlines()
     assert [ln.split("(")[0].split(None, 1)[1].strip() for ln in lines] == [
-        "first approximation", "centring", "editing", "fitting E", "radii and polish"]
+        "first approximation", "optimising"]
     assert all(ln.startswith("progress    ") and "\r" not in ln for ln in lines)
 
 
@@ -183,7 +183,7 @@ def test_version_comes_from_the_package_and_matches_the_manifest():
 def test_help_says_what_the_seed_does_and_the_output_policy():
     h = " ".join(run_cli("--help").stdout.split())
     assert "--seed SEED where the pole search starts" in h
-    assert "it can change the branches' topology and the joint count" in h
+    assert "it can change which branches the first approximation finds and the joint count" in h
     assert "a symbolic link is followed and the file it points to is replaced" in h
     assert "a read-only file is refused" in h and "/dev/null" in h
     assert "--quiet" in h and "--version" in h

@@ -43,7 +43,7 @@ CASES = [(name, v) for name in NUMERIC for v in _extremes(name)]
 
 
 def test_every_numeric_parameter_has_an_upper_bound():
-    """smoothness, centring ... at 1e308 crashed (IndexError, 'Factor is exactly singular')."""
+    """Weights at 1e308 crashed the old method (IndexError, 'Factor is exactly singular')."""
     assert all(rule[2] is not None for rule in NUMERIC.values()), NUMERIC
 
 

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from curveskel_addon.core.energy import (bone_terms, energy, energy_and_gradient, line_quartic,
+from curveskel_addon.core.objective.energy import (bone_terms, energy, energy_and_gradient, line_quartic,
                                          residuals)
-from curveskel_addon.core.problem import FitProblem
+from curveskel_addon.core.objective.problem import FitProblem
 
 
 def random_problem(seed, n=300, n_joints=7, weighted=True):

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from curveskel_addon.core.graph_root import central_joints
+from curveskel_addon.rig.graph_root import central_joints
 
 
 def _line(n):

@@ -16,7 +16,10 @@ from hypothesis import strategies as st
 from scipy.spatial import ConvexHull
 
 from curveskel_addon.core import CurveSkelError, skeletonize
-from curveskel_addon.core.mesh_input import MERGE_TOLERANCE, clean_mesh
+from curveskel_addon.core.config import CONFIG
+from curveskel_addon.core.mesh_input import clean_mesh
+
+MERGE_TOLERANCE = CONFIG.input.merge_tolerance
 
 SETTINGS = settings(max_examples=30, deadline=None, derandomize=True, database=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from curveskel_addon.core.line_search import minimize_quartic, minimize_quartic_on
+from curveskel_addon.core.objective.line_search import minimize_quartic, minimize_quartic_on
 
 
 def quartic(c, lam):

@@ -1,12 +1,15 @@
 """sigma: closest point on candidate bones (eq. 19 convention), and the mapping of a whole mesh."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
-from curveskel_addon.core import mapping
+from curveskel_addon.core.config import CONFIG
 from curveskel_addon.core.errors import CurveSkelError
-from curveskel_addon.core.mapping import closest_on_bones
-from curveskel_addon.core.reeb import first_approximation
+from curveskel_addon.core.geometry import segments
+from curveskel_addon.core.geometry.segments import closest_on_bones
+from curveskel_addon.core.initialise.reeb import first_approximation
 from meshes import capsule, torus
 
 
@@ -75,7 +78,8 @@ def test_candidates_and_all_bones_match_naive():
 
 
 def test_chunked_all_bones(monkeypatch):
-    monkeypatch.setattr(mapping, "_CHUNK", 64)
+    # bones against points in blocks of CONFIG.numerics.block pairs: 64 makes 6 points a block
+    monkeypatch.setattr(segments, "_NUM", replace(CONFIG.numerics, block=64))
     rng = np.random.default_rng(1)
     J, B, P = rng.normal(size=(9, 4)), rng.integers(0, 9, size=(10, 2)), rng.normal(size=(101, 3))
     assert np.allclose(closest_on_bones(P, J, B)[2], _naive(P, J, B)[2])

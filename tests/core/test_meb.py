@@ -7,7 +7,7 @@ import pytest
 from scipy.optimize import nnls
 
 from curveskel_addon.core.errors import CurveSkelError
-from curveskel_addon.core.meb import ball_through, min_enclosing_ball
+from curveskel_addon.core.geometry.meb import ball_through, min_enclosing_ball
 
 
 def brute_force(P):

@@ -13,7 +13,7 @@ from cli_support import run_cli
 from meshes import capsule
 
 from curveskel_addon.core import CurveSkelError, skeletonize
-from curveskel_addon.core.mesh_io import read_mesh
+from curveskel_addon.mesh_files import read_mesh
 
 CAPSULE = capsule(n_around=24, n_body=26)          # 962 vertices
 UNUSED = np.array([0.3, -0.2, 2.5])                # inside the capsule, used by no face

@@ -4,7 +4,9 @@ import numpy as np
 import pytest
 
 from curveskel_addon.core.errors import CurveSkelError
+from curveskel_addon.core.geometry.mesh_graph import edge_table
 from curveskel_addon.core.mesh_input import clean_mesh, triangulate
+from meshes import capsule, torus
 
 TET_V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
 TET_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
@@ -69,9 +71,6 @@ def test_degenerate_faces_dropped_isolated_vertices_flagged_input_untouched():
 def test_edge_table_from_the_census_is_the_working_meshs():
     # the cleaning's edge census serves the first approximation's edge table when no repair
     # changed the triangles after it (else None): the same arrays as mesh_graph.edge_table
-    from curveskel_addon.core.mesh_graph import edge_table
-    from tests.meshes import capsule, torus
-
     V, F = torus(n_major=30, n_minor=12)
     flipped = F.copy()
     flipped[::3] = flipped[::3, ::-1]                   # turned over, then made consistent

@@ -8,7 +8,7 @@ import pytest
 import trimesh
 
 from curveskel_addon.core.geometry.samples import face_samples
-from curveskel_addon.core.geometry.segments import closest_on_bones
+from curveskel_addon.core.geometry.segments import closest_on_bones, nearest_on_silhouette
 from curveskel_addon.core.mesh import Mesh
 from curveskel_addon.core.objective import terms as T
 from scipy.spatial import cKDTree
@@ -48,9 +48,25 @@ def _check_gradient(fn, Z, h=1e-7, rtol=1e-6):
 def test_fit_gradient(bumpy_capsule):
     mesh, s, Z, bones, bone, t = bumpy_capsule
     scale = 0.3 * (1 + 0.1 * np.sin(np.arange(len(t))))
-    value = _check_gradient(lambda Z, jac: T.fit_term(Z, s, bones, bone, t, s.weights.sum(), scale,
+    value = _check_gradient(lambda Z, jac: T.fit_term(Z, s, bones, bone, s.weights.sum(), scale,
                                                       jacobian=jac), Z)
     assert value > 0
+
+
+def test_soft_fit_gradient_and_bound(bumpy_capsule):
+    # three candidate cones per sample, softened over a tenth of the scale: the gradient
+    # against central differences; the soft minimum lies between the least value less
+    # tau log 3 and the least value
+    mesh, s, Z, bones, *_ = bumpy_capsule
+    bone, t, _ = nearest_on_silhouette(s.points, Z, bones, 3)
+    scale = np.full(len(t), 0.3)
+    fit = lambda Z, jac, soft=0.1: T.fit_term(Z, s, bones, bone, s.weights.sum(), scale,  # noqa: E731
+                                              softness=soft, jacobian=jac)
+    _check_gradient(fit, Z)
+    hard = T.fit_term(Z, s, bones, bone[:, 0], s.weights.sum(), scale, jacobian=False)[0]
+    assert np.all(fit(Z, False)[0] <= hard + 1e-12)
+    # pseudo-Huber is 1-Lipschitz in z beyond its origin: the shift is at most tau log 3 / scale
+    assert np.abs(fit(Z, False, 1e-6)[0] - hard).max() < 1e-5
 
 
 def test_centre_gradient(bumpy_capsule):
@@ -73,16 +89,30 @@ def test_smooth_gradient(bumpy_capsule):
     _check_gradient(lambda Z, jac: T.smooth_term(Z, bones, mesh.D, jacobian=jac), Z)
 
 
-def test_contain_gradient(bumpy_capsule):
+@pytest.mark.parametrize("shift", [0.25, 0.35, 0.6])
+def test_contain_gradient(bumpy_capsule, shift):
+    # pushed sideways: near the surface (0.25), partly out (0.35), out beyond the tangent
+    # planes' reach (0.6, where the distance to the surface takes over)
     mesh, s, Z, bones, *_ = bumpy_capsule
     tree = cKDTree(s.points)
-    out = Z + np.array([0.35, 0, 0, 0])            # pushed sideways: parts of bones leave the mesh
+    out = Z + np.array([shift, 0, 0, 0])
     value = _check_gradient(lambda Z, jac: T.contain_term(Z, bones, mesh.inside, tree, s.points,
-                                                          s.normal, mesh.D, jacobian=jac), out)
+                                                          s.normal, mesh.D, np.full(3, 0.1),
+                                                          jacobian=jac), out)
     assert value > 0
-    inside = T.contain_term(Z * np.array([0.1, 0.1, 0.5, 1]), bones, mesh.inside, tree, s.points,
-                            s.normal, mesh.D, jacobian=False)[0]
-    assert not inside.any()
+
+
+def test_contain_is_zero_deep_inside_and_grows_with_the_margin(bumpy_capsule):
+    mesh, s, Z, bones, *_ = bumpy_capsule
+    tree = cKDTree(s.points)
+    axis = Z * np.array([0.1, 0.1, 0.5, 1])         # on the axis, 0.4 from the surface
+    value = lambda margin: (T.contain_term(axis, bones, mesh.inside, tree, s.points, s.normal,  # noqa: E731
+                                           mesh.D, np.full(3, margin), jacobian=False)[0] ** 2).sum()
+    # the bones' points lie 0.35-0.42 under the jittered surface (the ends nearer the caps):
+    # seven margins of 0.05 deep they cost next to nothing; under margins of 0.45 and 0.6 they
+    # are short of the margin line and cost more with the larger margin
+    assert value(0.05) < 1e-6 * value(0.45)
+    assert 0 < value(0.45) < value(0.6)
 
 
 def test_smooth_values_by_hand():
@@ -117,6 +147,6 @@ def test_fit_is_zero_for_the_exact_silhouette():
     P = s.points
     Z = np.array([[0, 0, -1.0, 0.4], [0, 0, 1.0, 0.4]])
     bone, t, d2 = closest_on_bones(P, Z, np.array([[0, 1]]))
-    r, _ = T.fit_term(Z, s, np.array([[0, 1]]), bone, t, s.weights.sum(), 0.4, jacobian=False)
+    r, _ = T.fit_term(Z, s, np.array([[0, 1]]), bone, s.weights.sum(), 0.4, jacobian=False)
     # faces are flat chords of the round surface: within their sagitta (1 - cos(pi/32)) r
     assert np.abs(r).max() < 0.006

@@ -70,7 +70,9 @@ def test_the_wheel_holds_the_package_and_its_command_only(wheel):
     top = {n.split("/")[0] for n in names}
     assert top == {"curveskel_addon", f"curveskel-{__version__}.dist-info"}, top
     assert not any(n.startswith(("tests/", "scripts/")) or "__pycache__" in n for n in names)
-    for module in ("core/pipeline.py", "core/mesh_io.py", "cli/__init__.py", "cli/skeletonize.py",
+    for module in ("core/pipeline.py", "core/geometry/inside.py", "core/objective/terms.py",
+                   "mesh_files.py", "run_summary.py", "measure/__init__.py", "measure/quality.py",
+                   "rig/__init__.py", "rig/rig_layout.py", "cli/__init__.py", "cli/skeletonize.py",
                    "cli/outputs.py", "ops_generate.py"):
         assert f"curveskel_addon/{module}" in names
     z = zipfile.ZipFile(wheel)
@@ -107,7 +109,8 @@ def test_the_installed_command_gives_the_scripts_skeleton(venv, tmp_path):
 
 
 def test_the_installed_package_is_the_venvs_and_imports_no_blender(venv, tmp_path):
-    code = ("import sys, curveskel_addon, curveskel_addon.core, curveskel_addon.cli.skeletonize; "
+    code = ("import sys, curveskel_addon, curveskel_addon.core, curveskel_addon.cli.skeletonize, "
+            "curveskel_addon.measure.quality, curveskel_addon.rig.skin_weights; "
             "print(curveskel_addon.__file__); print('bpy' in sys.modules)")
     r = subprocess.run([str(venv / "bin" / "python"), "-c", code], capture_output=True, text=True,
                        cwd=tmp_path, env=_env(), timeout=120)

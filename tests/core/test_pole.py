@@ -3,10 +3,12 @@
 import numpy as np
 import pytest
 from scipy.sparse.csgraph import dijkstra
+from scipy.spatial import cKDTree
 
 from curveskel_addon.core.errors import CurveSkelError
-from curveskel_addon.core.mesh_graph import adjacency, edge_lengths, edge_table
-from curveskel_addon.core.pole import find_pole
+from curveskel_addon.core.geometry.mesh_graph import adjacency, edge_lengths, edge_table
+from curveskel_addon.core.initialise.pole import bilateral_plane, find_pole, principal_mirrors
+from curveskel_addon.mesh_files import read_mesh
 from meshes import bent_capsule, capsule
 
 
@@ -65,10 +67,6 @@ def test_mirror_symmetric_shape_grows_f_from_the_pole_and_its_image(shared_meshe
     (a hoof) and its twin, so mirror-image vertices get the same f (up to its triangulation,
     which is not mirrored edge for edge: 1.3 % of the maximum); from the pole alone they differ
     by a leg's length."""
-    from scipy.spatial import cKDTree
-
-    from curveskel_addon.core.mesh_io import read_mesh
-    from curveskel_addon.core.pole import bilateral_plane, principal_mirrors
     V, F = read_mesh(shared_meshes / "spot.obj")
     E, L = _graph(V, F)
     c, e = bilateral_plane(V)

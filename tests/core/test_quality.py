@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from curveskel_addon.core.quality import (
-    bone_points, closest_mapping, inside_mesh, mesh_distance, mesh_topology,
-    point_triangle_distance, quality, sample_silhouette_boundary, sd_round_cone,
-    silhouette_sdf, skeleton_topology, winding_number)
+from curveskel_addon.core.geometry.inside import inside_mesh
 from curveskel_addon.core.skeleton import Skeleton
+from curveskel_addon.measure.quality import (
+    bone_points, closest_mapping, mesh_distance, mesh_topology, point_triangle_distance, quality,
+    sample_silhouette_boundary, sd_round_cone, silhouette_sdf, skeleton_topology, winding_number)
 from tests.meshes import capsule, torus
 
 R, L = 1.0, 6.0
@@ -77,7 +77,7 @@ def test_sd_round_cone_contained_ball_is_larger_ball():
 def test_round_cone_geometry_reused_with_new_radii_matches_direct():
     # the radius fit computes the point-cone geometry once and evaluates it with many radii,
     # some pairs degenerate (one ball inside the other), under broadcasting and row takes
-    from curveskel_addon.core.quality import (round_cone_geometry, sd_round_cone_radii,
+    from curveskel_addon.measure.quality import (round_cone_geometry, sd_round_cone_radii,
                                               take_round_cone_geometry)
     rng = np.random.default_rng(4)
     P = rng.uniform(-2, 2, size=(50, 3))

@@ -7,7 +7,7 @@ import pytest
 
 import meshes
 from curveskel_addon.core import CurveSkelError, skeletonize
-from curveskel_addon.core.rig_layout import BLEND_HUB, BLEND_NONE, BLEND_SYMMETRIC, rig_layout
+from curveskel_addon.rig.rig_layout import BLEND_HUB, BLEND_NONE, BLEND_SYMMETRIC, rig_layout
 
 NAME = re.compile(r"^(root\.\d{2,}|branch\d{2,}\.\d{2,})$")
 
@@ -188,7 +188,7 @@ def test_real_skeletons(name):
 
 
 # -- mirror plane and readable names (issue 14) --------------------------------------------------------
-from curveskel_addon.core.rig_layout import MirrorPlane, mirror_plane, named_rig  # noqa: E402
+from curveskel_addon.rig.rig_layout import MirrorPlane, mirror_plane, named_rig  # noqa: E402
 
 READABLE = re.compile(r"^(root(\.\d{2})?|(spine|limb|chain)\d*(\.[LR])?\.\d{2,})$")
 

@@ -9,8 +9,6 @@ from __future__ import annotations
 import json
 import os
 import struct
-import subprocess
-import sys
 import warnings
 from pathlib import Path
 
@@ -21,9 +19,12 @@ from cli_support import run_cli as _run_cli, write_capsule_obj
 from meshes import capsule
 
 from curveskel_addon.core import CurveSkelError, SkeletonParams, skeletonize
-from curveskel_addon.core.mesh_input import MERGE_TOLERANCE, clean_mesh
-from curveskel_addon.core.mesh_io import read_mesh
+from curveskel_addon.core.config import CONFIG
+from curveskel_addon.core.mesh_input import clean_mesh
 from curveskel_addon.core.params import RULES
+from curveskel_addon.mesh_files import _OBJ_ZERO_INDEX, read_mesh
+
+MERGE_TOLERANCE = CONFIG.input.merge_tolerance
 
 ROOT = Path(__file__).resolve().parents[2]
 CLI = ROOT / "scripts" / "skeletonize.py"
@@ -367,8 +368,6 @@ def test_a_bad_mesh_file_says_what_is_wrong(tmp_path, name):
     (b"f 4 5 0", True),
 ])
 def test_zero_based_obj_detection(text, zero_based):
-    from curveskel_addon.core.mesh_io import _OBJ_ZERO_INDEX
-
     assert (_OBJ_ZERO_INDEX.search(text) is not None) == zero_based
 
 
@@ -408,13 +407,15 @@ CLI_REFUSALS = {
     "two outputs, one file": (lambda m, d: ["--json", d / "x.json", "--render", d / "x.json"],
                               "name the same file"),
     "--glb without .glb": (lambda m, d: ["--glb", d / "x.gltf"], "must end in .glb"),
-    "--containment nan": (lambda m, d: ["--containment", "nan"], "containment must be a finite number"),
+    "--prune nan": (lambda m, d: ["--prune", "nan"], "prune must be a finite number"),
+    "--containment nan (no longer a parameter)": (lambda m, d: ["--containment", "nan"],
+                                                  "unrecognized arguments: --containment"),
     "--smoothness -1": (lambda m, d: ["--smoothness", "-1"], "smoothness must be >= 0"),
     "--refine -1 (no longer a parameter)": (lambda m, d: ["--refine", "-1"],
                                             "unrecognized arguments: --refine"),
     "--seed -1": (lambda m, d: ["--seed", "-1"], "seed must be >= 0"),
-    "--max-fit-points -5": (lambda m, d: ["--max-fit-points", "-5"], "max_fit_points must be >= 0"),
-    "--containment inf": (lambda m, d: ["--containment", "inf"], "containment must be a finite number"),
+    "--max-joints -5": (lambda m, d: ["--max-joints", "-5"], "max_joints must be >= 0"),
+    "--tolerance inf": (lambda m, d: ["--tolerance", "inf"], "tolerance must be a finite number"),
     "--min-component-area 1": (lambda m, d: ["--min-component-area", "1"], "min_component_area must be"),
 }
 
@@ -422,10 +423,6 @@ CLI_REFUSALS = {
 @pytest.mark.parametrize("name", list(CLI_REFUSALS))
 def test_cli_refuses_before_running(mesh_file, tmp_path, name):
     make, message = CLI_REFUSALS[name]
-    import re
-
-    flag = re.match(r"[-a-z]*", name).group(0)
-    field = flag[2:].replace("-", "_")
     before = mesh_file.read_bytes()
     r = run_cli(mesh_file, *make(mesh_file, tmp_path))
     _refused_before_running(r, message)

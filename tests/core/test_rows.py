@@ -1,4 +1,4 @@
-"""The row-wise helpers (core/rows.py) give numpy's own results bit for bit: the pipeline uses
+"""The row-wise helpers (core/geometry/rows.py) give numpy's own results bit for bit: the pipeline uses
 them where a changed last bit could change a skeleton."""
 
 from __future__ import annotations
@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from curveskel_addon.core.rows import col_max, col_min, col_ptp, row_cross, row_norm, take_rows
-from curveskel_addon.core.vertex_area import face_cross, vertex_areas
+from curveskel_addon.core.geometry.rows import (col_max, col_min, col_ptp, mul_rows, row_cross, row_norm,
+                                            take_rows)
+from curveskel_addon.core.geometry.areas import face_cross, vertex_areas
 from tests.meshes import torus
 
 
@@ -53,8 +54,6 @@ def test_nan_and_empty_like_numpy():
 
 
 def test_mul_rows_like_numpy():
-    from curveskel_addon.core.rows import mul_rows
-
     rng, X = _arrays(3)
     t = rng.normal(size=len(X)) * 1e3
     assert np.array_equal(mul_rows(t, X), t[:, None] * X)

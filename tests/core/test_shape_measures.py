@@ -1,4 +1,4 @@
-"""Shape measures of issue 10 (quality.curve_measures / curve_distances / shape_measures):
+"""Shape measures of issue 10 (measure.quality.curve_measures / curve_distances / shape_measures):
 analytic answers, brute-force agreement, and agreement with ../shared/tools/shape_check.py."""
 
 from __future__ import annotations
@@ -11,12 +11,15 @@ import numpy as np
 import pytest
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
+from scipy.spatial import cKDTree
 
-from curveskel_addon.core.quality import (
-    bbox_diagonal, close_bone_pairs, curve_arrays, curve_distances, curve_measures, curve_points,
-    fold_pairs, section_offsets, segment_points, segment_segment_distance, shape_measures,
-    turn_angles)
+from curveskel_addon.core import SkeletonParams
 from curveskel_addon.core.skeleton import Skeleton
+from curveskel_addon.measure.quality import (
+    bbox_diagonal, close_bone_pairs, crossing_pairs, curve_arrays, curve_distances, curve_measures,
+    curve_points, fold_pairs, mirror_asymmetry, quality, section_offsets, segment_points,
+    segment_segment_distance, shape_measures, turn_angles)
+from curveskel_addon.mesh_files import read_mesh
 from tests.meshes import box_bar, capsule
 
 SHARED = Path(__file__).resolve().parents[3] / "shared"
@@ -289,8 +292,6 @@ def test_agrees_with_shared_shape_check(name, mesh):
     mesh_path = SHARED / "meshes" / mesh
     if not (ref_path.is_file() and mesh_path.is_file()):
         pytest.skip("shared mesh / reference not present")
-    from curveskel_addon.core.mesh_io import read_mesh
-
     V, F = read_mesh(mesh_path)
     D = bbox_diagonal(V, F)
     assert D == pytest.approx(sc.mesh_diag(str(mesh_path)))
@@ -302,7 +303,6 @@ def test_agrees_with_shared_shape_check(name, mesh):
     B = old_to_new[Br]
     B = B[B[:, 0] != B[:, 1]]
     # criss-cross: joints 0.02-0.2 D apart joined
-    from scipy.spatial import cKDTree
     cand = cKDTree(X).query_pairs(0.2 * D, output_type="ndarray")
     cand = cand[np.linalg.norm(X[cand[:, 0]] - X[cand[:, 1]], axis=1) > 0.02 * D]
     B = np.concatenate([B, cand[rng.choice(len(cand), 15, replace=False)]])
@@ -337,8 +337,6 @@ def _script(name):
 
 def test_shape_table_parses_overrides_and_marks_targets():
     st = _script("shape_table")
-    from curveskel_addon.core import SkeletonParams
-
     fields = SkeletonParams().to_dict()
     sets = []
     for name, value in fields.items():       # one override of each type present
@@ -367,8 +365,6 @@ def test_shape_table_parses_overrides_and_marks_targets():
 
 
 def test_quality_reports_shape_measures():
-    from curveskel_addon.core.quality import quality
-
     V, F = capsule(radius=1.0, length=6.0, n_around=16, n_body=10, cap_rings=4)
     sk = Skeleton(np.array([[0, 0, 0, 1], [0, 0, 3, 1], [0, 0, 6, 1]], float),
                   np.array([[0, 1], [1, 2]]), np.zeros(0, int), np.zeros(0))
@@ -379,8 +375,6 @@ def test_quality_reports_shape_measures():
 
 
 def test_crossings_count_bones_within_their_radius_far_along_the_skeleton():
-    from curveskel_addon.core.quality import crossing_pairs, curve_measures
-
     # a chain turns back over its first bone, 0.075 above it where they cross
     J = np.array([[0, 0, 0, 1], [4, 0, 0, 1], [4, 3, 0, 1], [2, 3, 0, 1], [2, -1, 0.1, 1.0]])
     B = np.array([[0, 1], [1, 2], [2, 3], [3, 4]])
@@ -397,7 +391,6 @@ def test_crossings_count_bones_within_their_radius_far_along_the_skeleton():
 def test_pinches_count_chain_joints_thinner_than_both_neighbours():
     """A waist of radius 0.3 between radii 1 and 0.9 is a pinch (< 0.4 of both); 0.5 is not; a
     tip is never one; a curve without radii has no pinch count."""
-    from curveskel_addon.core.quality import curve_measures
     X = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0], [4, 0, 0]])
     bones = np.array([[0, 1], [1, 2], [2, 3], [3, 4]])
     J = np.column_stack([X, [0.1, 1.0, 0.3, 0.9, 0.05]])
@@ -411,7 +404,6 @@ def test_mirror_asymmetry_of_a_skeleton_and_its_reflection():
     """Points symmetric across x = 0 only; a bone on the plane is its own mirror image (0), a bone
     1 to its side lies 2 from its image everywhere (2 / D both ways); a box symmetric across three
     planes has no one mirror plane (None)."""
-    from curveskel_addon.core.quality import mirror_asymmetry
     V = np.array([[x, y, z] for x in (-2., 2) for y in (0., 1, 3) for z in (0., 1, 5)])
     bone = np.array([[0, 1]])
     assert mirror_asymmetry(V, (np.array([[0., 0, 0], [0, 3, 0]]), bone), 10.0) == pytest.approx(0, abs=1e-12)
@@ -425,8 +417,6 @@ def test_reference_centring_measures_how_far_a_curve_runs_from_its_sections_cent
     lies on its sections' centroids (offset ~0); the axis moved by 0.3 along x is 0.3 off
     them, and the curve through the centroids is 0.3 from it."""
     rc = _script("reference_centring")
-    from tests.meshes import capsule
-
     V, F = capsule(radius=1.0, length=6.0)
     D = float(np.linalg.norm(np.ptp(V, axis=0)))
     R = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 5.0]])

@@ -5,8 +5,10 @@ import json
 import numpy as np
 import pytest
 
+from curveskel_addon.core import skeletonize
 from curveskel_addon.core.errors import CurveSkelError
 from curveskel_addon.core.skeleton import FORMAT, Skeleton
+from meshes import capsule
 
 
 def _skeleton():
@@ -71,3 +73,36 @@ def test_unreadable_file_is_our_error(tmp_path):
     p.write_text("{not json")
     with pytest.raises(CurveSkelError, match="cannot read"):
         Skeleton.load(p)
+
+
+@pytest.fixture(scope="module")
+def run():
+    V, F = capsule(radius=1.0, length=6.0, n_around=12, n_body=12)
+    return skeletonize(V, F)
+
+
+def test_a_runs_document_carries_j_per_stage_and_reads_back(run, tmp_path):
+    """Issue 30: every entry of ``meta["stages"]`` carries ``J`` and ``terms`` (a dict of the
+    terms' values), ``meta["J"]`` is the returned skeleton's J, and the JSON keeps them."""
+    d = json.loads(json.dumps(run.to_dict()))
+    stages = d["meta"]["stages"]
+    assert len(stages) >= 2
+    for st in stages:
+        assert isinstance(st["J"], float) and np.isfinite(st["J"])
+        assert {"fit", "centre", "smooth", "contain", "joints", "tips", "E"} <= set(st["terms"])
+    assert d["meta"]["J"] == stages[-1]["J"] == run.meta["J"]
+    assert d["energy"]["history"] == [st["terms"]["E"] for st in stages]
+    p = tmp_path / "run.json"
+    run.save(p)
+    back = Skeleton.load(p)
+    assert back.meta["stages"] == run.meta["stages"] and back.meta["J"] == run.meta["J"]
+
+
+def test_a_runs_summary_has_its_figures(run):
+    """What the Blender panel and the command line print after a run (``Skeleton.summary``):
+    joints, bones, components, E0 (the first approximation's E), E (the returned skeleton's),
+    iterations, seconds."""
+    s = run.summary()
+    assert (s["joints"], s["bones"], s["components"]) == (run.n_joints, run.n_bones, 1)
+    assert s["E0"] == run.energy[0] and s["E"] == run.energy[-1]
+    assert s["iterations"] >= 1 and s["seconds"] > 0

@@ -5,9 +5,9 @@ import pytest
 
 import meshes
 from curveskel_addon.core import CurveSkelError, skeletonize
-from curveskel_addon.core.mapping import closest_on_bones
-from curveskel_addon.core.rig_layout import rig_layout
-from curveskel_addon.core.skin_weights import (project_on_bones, skin_weights, smooth_weights,
+from curveskel_addon.core.geometry.segments import closest_on_bones
+from curveskel_addon.rig.rig_layout import rig_layout
+from curveskel_addon.rig.skin_weights import (project_on_bones, skin_weights, smooth_weights,
                                                smoothing_iterations, smoothstep)
 from test_rig_layout import ring_skeleton, star_skeleton
 
@@ -149,7 +149,7 @@ def test_smooth_weights_closes_seams_and_keeps_sums():
 def test_smooth_weights_dense_and_sparse_diffusion_agree(monkeypatch, iterations):
     # the same diffusion on a dense float32 array (small meshes) and on sparse matrices (large
     # ones): a capsule with 8 bones along it, two influences per vertex near the joints
-    import curveskel_addon.core.skin_weights as sw
+    import curveskel_addon.rig.skin_weights as sw
     V, F = meshes.capsule()
     z = (V[:, 2] - V[:, 2].min()) / np.ptp(V[:, 2]) * 8
     b = np.minimum(z.astype(int), 7)
@@ -183,8 +183,8 @@ def test_smooth_weights_keeps_four_largest():
 
 
 # -- weights from the bones as they are (issue 14) ---------------------------------------------------
-from curveskel_addon.core.rig_layout import BLEND_HUB as _HUB, BLEND_NONE as _NONE, BLEND_SYMMETRIC as _SYM  # noqa: E402
-from curveskel_addon.core.skin_weights import bone_partners, bone_weights, surface_labels  # noqa: E402
+from curveskel_addon.rig.rig_layout import BLEND_HUB as _HUB, BLEND_NONE as _NONE, BLEND_SYMMETRIC as _SYM  # noqa: E402
+from curveskel_addon.rig.skin_weights import bone_partners, bone_weights, surface_labels  # noqa: E402
 
 GAP, FR = 0.03, 0.1
 FX = FR + GAP / 2
@@ -312,7 +312,7 @@ def test_graph_arrays_equal_scipys_csr_of_the_closed_one_ring():
     closed 1-ring (duplicate and reversed edges once, self-loops dropped, columns sorted)."""
     import scipy.sparse as sp
 
-    from curveskel_addon.core.skin_weights import _Graph
+    from curveskel_addon.rig.skin_weights import _Graph
 
     rng = np.random.default_rng(3)
     n = 40
@@ -335,7 +335,7 @@ def test_graph_arrays_equal_scipys_csr_of_the_closed_one_ring():
 
 
 def test_float32_averaging_is_the_float64_one_rounded():
-    from curveskel_addon.core.skin_weights import _Graph
+    from curveskel_addon.rig.skin_weights import _Graph
 
     V, F = meshes.capsule()
     E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
@@ -350,7 +350,7 @@ def test_float32_averaging_is_the_float64_one_rounded():
 def test_closest_bone_is_the_first_of_the_exactly_closest():
     """closest_bone (float32 screen, near-ties compared exactly) against every bone compared
     exactly, the first of equal distances kept; points on shared joints tie exactly."""
-    from curveskel_addon.core.mapping import _pair_closest, closest_bone
+    from curveskel_addon.core.geometry.segments import _pair_closest, closest_bone
 
     rng = np.random.default_rng(7)
     X = rng.normal(size=(30, 3))
@@ -397,7 +397,7 @@ def _family_reference(index, weight, par, blends):
 def test_keep_family_equals_the_masked_reference(seed):
     """The one-pass family filter gives the masked reference's arrays bit for bit: random trees,
     rows of distinct bones with decreasing weights (ties included), empty rows and columns."""
-    from curveskel_addon.core.skin_weights import _keep_family
+    from curveskel_addon.rig.skin_weights import _keep_family
 
     rng = np.random.default_rng(seed)
     R, n, m = 12, 400, 4
@@ -441,7 +441,7 @@ def test_dense_top4_equals_the_argmax_reference(seed):
     """_smooth_dense picks the 4 largest on the transposed array, dropping weights below the
     prune threshold as they come up: bit for bit the row-wise argmax after a pruning pass (ties
     to the lower column, rows with fewer than 4 weights, rows with none, values under prune)."""
-    from curveskel_addon.core.skin_weights import _Graph, _smooth_dense
+    from curveskel_addon.rig.skin_weights import _Graph, _smooth_dense
 
     rng = np.random.default_rng(seed)
     n, nb = 300, 9
@@ -458,7 +458,7 @@ def test_dense_top4_equals_the_argmax_reference(seed):
 
 
 def test_median_is_numpys():
-    from curveskel_addon.core.skin_weights import _median
+    from curveskel_addon.rig.skin_weights import _median
 
     rng = np.random.default_rng(5)
     for n in (1, 2, 3, 10, 11, 451, 2930):
@@ -472,7 +472,7 @@ def test_kept_patches_equal_the_sorted_reference(seed):
     """Each bone keeps its largest patch, of equal ones that of its lowest vertex: the same as
     the first patch per bone after a stable sort by bone, then by decreasing size (ties made
     likely: patches of 1-3 vertices)."""
-    from curveskel_addon.core.skin_weights import _kept_patches
+    from curveskel_addon.rig.skin_weights import _kept_patches
 
     rng = np.random.default_rng(seed)
     R, P = 7, 60

@@ -3,6 +3,11 @@
 Used by the guards (no bone outside the mesh) and by the measures. The rays are random lines
 (seeded), so rays along a procedural mesh's symmetry planes do not graze its edges; three rays
 vote.
+
+With ``union=True`` a ray counts its crossings with their signs (the winding number) instead of
+their parity: a point is inside when it is inside any of the mesh's closed, outward parts. Where
+parts overlap (a limb pushed into a body) parity calls the overlap outside; the winding number
+sees the solid the parts make together. On parts that do not overlap the two agree.
 """
 
 from __future__ import annotations
@@ -119,11 +124,12 @@ class _RayGrid:
         """Parity of crossings of the ray from each point (n, 3) along the grid's direction."""
         return self.parities(P)[0]
 
-    def parities(self, P):
+    def parities(self, P, union=False):
         """Parities of crossings of the two rays from each point (n, 3) along the grid's line,
         forwards and backwards: (n,) int each. On a closed surface they agree unless the line
         grazes an edge or a vertex, which spoils one side only (the graze is on one side of the
-        point): two independent votes for the price of one grid."""
+        point): two independent votes for the price of one grid. ``union``: 1 where the signed
+        count of crossings (the winding number) is not zero instead (inside any outward part)."""
         glo, ghi = self.glo, self.ghi
         Pr = P @ self.R.T
         parity = np.zeros(len(P), np.int64)
@@ -155,8 +161,13 @@ class _RayGrid:
             with np.errstate(divide="ignore", invalid="ignore"):
                 xh = (w0 * t[:, 0, 0] + w1 * t[:, 1, 0] + w2 * t[:, 2, 0]) / ws
             ahead = xh > Pr[pp, 0]
-            parity += np.bincount(pp[hit & ahead], minlength=len(P))
-            back += np.bincount(pp[hit & (xh < Pr[pp, 0])], minlength=len(P))
+            fwd, bwd = hit & ahead, hit & (xh < Pr[pp, 0])
+            # the sign of the projected area says which way the face's normal crosses the ray
+            sign = np.where(ws > 0, 1, -1) if union else np.ones(len(ws), np.int64)
+            parity += np.bincount(pp[fwd], sign[fwd], minlength=len(P)).astype(np.int64)
+            back += np.bincount(pp[bwd], sign[bwd], minlength=len(P)).astype(np.int64)
+        if union:
+            return (parity != 0).astype(np.int64), (back != 0).astype(np.int64)
         return parity % 2, back % 2
 
 
@@ -190,6 +201,9 @@ class InsideTest:
     F : (m, 3) int
     seed : int
     n_rays : int, odd
+    union : bool
+        Inside any of the mesh's outward parts (the winding number), not by parity: see the
+        module's doc.
 
     Examples
     --------
@@ -198,8 +212,9 @@ class InsideTest:
     array([ True])
     """
 
-    def __init__(self, V, F, *, seed=0, n_rays=None):
+    def __init__(self, V, F, *, seed=0, n_rays=None, union=False):
         n_rays = CONFIG.input.inside_rays if n_rays is None else n_rays
+        self.union = bool(union)
         self._V = np.asarray(V, dtype=np.float64)
         self._F = np.asarray(F, dtype=np.int64)
         self.n_rays = n_rays
@@ -229,7 +244,7 @@ class InsideTest:
         # (one way, or both if the votes still need two): one grid decides nearly every point.
         k = cast = 0
         while cast < n and open_.size:
-            ahead, back = self._grid(k).parities(P[open_])
+            ahead, back = self._grid(k).parities(P[open_], self.union)
             both = cast + 2 <= n
             votes[open_] += ahead + back if both else ahead
             cast += 2 if both else 1

@@ -21,7 +21,7 @@ from ..config import CONFIG
 from ..errors import CurveSkelError
 from .rows import col_max, col_min, mul_rows, take_rows
 
-__all__ = ["closest_on_bones", "closest_bone"]
+__all__ = ["closest_on_bones", "closest_bone", "nearest_on_silhouette"]
 
 _NUM = CONFIG.numerics
 
@@ -261,3 +261,81 @@ def _all_bones(P, X, bones):
         bone[rows] = closest_on_bones(P[rows], X, bones, candidates=(indptr, np.concatenate(cands)))[0]
     t, d2 = _on_bones(P, X, bones, bone)
     return bone, t, d2
+
+
+def nearest_on_silhouette(points, joints, bones, k: int = 1):
+    """For each point, the bone whose round cone's surface is nearest along the bone's own
+    normal: the bone minimising ``|p - s_b| - r_b(s_b)``, ``s_b`` the point's closest point on
+    bone ``b`` and ``r_b`` the radius there (linear between the joints' radii).
+
+    The least of these is the signed distance from the point to the silhouette (the union of
+    the bones' round cones, measured to each cone along its axis' normal): a point inside a
+    fat neighbour's cone maps to it with a negative value, where the closest bone's axis would
+    hide the overlap.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+    joints : (J, 4) float
+    bones : (B, 2) int
+
+    k : int
+        How many bones to return per point (the ``k`` least values, least first).
+
+    Returns
+    -------
+    bone : (n,) int, or (n, k) for ``k > 1``
+    t : (n,) float, or (n, k)
+        sigma = t x_i + (1 - t) x_j on bone (i, j), as :func:`closest_on_bones`.
+    dist2 : (n,) float, or (n, k)
+        Squared distance from the point to sigma.
+
+    Examples
+    --------
+    >>> J = np.array([[0., 0, 0, 0.1], [0, 0, 2, 0.1], [0, 0, 0, 1.5], [2, 0, 0, 1.5]])
+    >>> b, t, d2 = nearest_on_silhouette(np.array([[0.5, 0, 1.0]]), J, np.array([[0, 1], [2, 3]]))
+    >>> int(b[0])                  # 0.5 from the thin bone's axis, 1.0 inside the fat one
+    1
+    """
+    P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    Z = np.asarray(joints, dtype=np.float64)
+    bones = np.asarray(bones, dtype=np.int64).reshape(-1, 2)
+    n, nb = len(P), len(bones)
+    if n == 0:
+        return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
+    if nb == 0:
+        raise CurveSkelError("nearest_on_silhouette: the skeleton has no bones")
+    # about the points' centre, with BLAS products (the same algebra as _screen, in float64):
+    # num = p.d - a.d, t = clip(num / d.d), |p - s|^2 = |p|^2 - 2 p.a + a.a - t (2 num - t d.d)
+    o = 0.5 * (col_min(P) + col_max(P))
+    Pc = P - o
+    A = Z[bones[:, 1], :3] - o
+    Dv = Z[bones[:, 0], :3] - Z[bones[:, 1], :3]
+    DD = np.einsum("ij,ij->i", Dv, Dv)
+    AD = np.einsum("ij,ij->i", A, Dv)
+    AA = np.einsum("ij,ij->i", A, A)
+    inv = np.divide(1.0, DD, out=np.zeros_like(DD), where=DD > 0)
+    ri, rj = Z[bones[:, 0], 3], Z[bones[:, 1], 3]
+    At, Dt = np.ascontiguousarray(-2.0 * A.T), np.ascontiguousarray(Dv.T)
+    kk = min(int(k), nb)
+    bone = np.zeros((n, kk), np.int64)
+    step = max(1, _NUM.block // nb)
+    for s in range(0, n, step):
+        p = Pc[s:s + step]
+        d2 = _screen(p @ Dt, p @ At, AD, AA, inv, DD)
+        d2 += np.einsum("ij,ij->i", p, p)[:, None]
+        t = np.clip((p @ Dt - AD) * inv, 0.0, 1.0)
+        value = np.sqrt(np.maximum(d2, 0.0)) - (rj + t * (ri - rj))
+        if kk == 1:
+            bone[s:s + step, 0] = np.argmin(value, axis=1)
+            continue
+        part = np.argpartition(value, kk - 1, axis=1)[:, :kk] if kk < nb else \
+            np.broadcast_to(np.arange(nb), value.shape).copy()
+        rows = np.arange(len(p))[:, None]
+        order = np.argsort(value[rows, part], axis=1, kind="stable")
+        bone[s:s + step] = part[rows, order]
+    flat = bone.ravel()
+    t, d2 = _on_bones(np.repeat(P, kk, axis=0), Z[:, :3], bones, flat)
+    if k == 1:
+        return bone[:, 0], t, d2
+    return bone, t.reshape(n, kk), d2.reshape(n, kk)

@@ -45,6 +45,8 @@ class Initial:
     vertex_bone, vertex_t : (n,) int, (n,) float
         The first approximation's own mapping of every working vertex (the paper's sigma; with
         ``resolve``, onto the resolved graph's bones).
+    bone_part : (B,) int
+        The component each bone was found in.
     """
 
     graph: SkeletonGraph
@@ -54,6 +56,7 @@ class Initial:
     meta: list
     vertex_bone: np.ndarray
     vertex_t: np.ndarray
+    bone_part: np.ndarray | None = None
 
 
 def initial_graph(mesh, labels, n_components, samples, *, spacing, seed, inside=None,
@@ -68,8 +71,9 @@ def initial_graph(mesh, labels, n_components, samples, *, spacing, seed, inside=
     n_components : int
     samples : Samples
         Surface samples (their faces and barycentric coordinates locate their regions).
-    spacing : float
-        Contour spacing, a fraction of each component's size.
+    spacing : float or (n_components,) float
+        Contour spacing, a fraction of each component's size (one per component: the parts
+        of a figure at the figure's resolution, :mod:`.parts`).
     seed : int
     inside : callable, optional
         Returns the mesh's inside test (one component only: see :func:`.reeb.first_approximation`).
@@ -81,7 +85,7 @@ def initial_graph(mesh, labels, n_components, samples, *, spacing, seed, inside=
     """
     V, F = mesh.V, mesh.F
     face_label = labels[F[:, 0]]
-    joints, bones, pairs, meta = [], [], [], []
+    joints, bones, pairs, meta, bone_part = [], [], [], [], []
     vertex_region = np.zeros(len(V), np.int64)
     vertex_bone = np.zeros(len(V), np.int64)
     vertex_t = np.zeros(len(V))
@@ -96,9 +100,10 @@ def initial_graph(mesh, labels, n_components, samples, *, spacing, seed, inside=
         local = np.full(len(V), -1, np.int64)
         local[vids] = np.arange(len(vids))
         Vc, Fc = V[vids], local[F[fids]]
-        fa = first_approximation(Vc, Fc, spacing=spacing, seed=seed,
+        sp = float(spacing[c]) if np.ndim(spacing) else spacing
+        fa = first_approximation(Vc, Fc, spacing=sp, seed=seed,
                                  inside=inside if one else None, edges=edges if one else None)
-        h = fa.meta.get("spacing_used", spacing) * fa.meta["size"]
+        h = fa.meta.get("spacing_used", sp) * fa.meta["size"]
         if fa.region is None:                       # one bone for the whole component
             reg_v = np.zeros(len(vids), np.int64)
             breg = np.zeros(len(fa.bones), np.int64)
@@ -119,6 +124,7 @@ def initial_graph(mesh, labels, n_components, samples, *, spacing, seed, inside=
             s_reg = fa.region_of(Fc, local_face[samples.face[ss]], samples.bary[ss])
         joints.append(np.asarray(g.joints))
         bones.append(g.bones + nj)
+        bone_part.append(np.full(len(g.bones), c, np.int64))
         pairs.append(g.pairs + np.array([nr, 0]))
         vertex_region[vids] = reg_v + nr
         vertex_bone[vids] = vb + sum(len(b) for b in bones[:-1])
@@ -139,4 +145,4 @@ def initial_graph(mesh, labels, n_components, samples, *, spacing, seed, inside=
     graph = SkeletonGraph(np.concatenate(joints), np.concatenate(bones),
                           np.concatenate(shifted))
     return Initial(graph, sample_region, vertex_region, np.where(np.isfinite(key), key, 0.0),
-                   meta, vertex_bone, vertex_t)
+                   meta, vertex_bone, vertex_t, np.concatenate(bone_part))

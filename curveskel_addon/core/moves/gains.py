@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry.rows import row_norm
-from ..geometry.segments import closest_on_bones
-from ..objective.terms import BONE_POINTS, bone_centres, chain_neighbours, fit_values, smooth_triplets
+from ..geometry.segments import nearest_on_silhouette
+from ..objective.terms import bone_centres, bone_contain, chain_neighbours, fit_values, smooth_triplets
 
 __all__ = ["merge_gains", "prune_gains"]
 
@@ -33,15 +33,12 @@ def _smooth(Z, k, a, b, D):
 
 
 def _contain(objective, A, B):
-    """Containment value of the bones ``A -> B`` (rows), as :func:`..objective.terms.contain_term`."""
-    u = BONE_POINTS
-    m = len(u)
-    Q = (u[None, :, None] * A[:, None, :] + (1 - u)[None, :, None] * B[:, None, :]).reshape(-1, 3)
-    _, nn = objective.tree.query(Q)
-    h = np.maximum(np.einsum("ij,ij->i", Q - objective.samples.points[nn],
-                             objective.samples.normal[nn]), 0.0).reshape(-1, m)
-    lb = row_norm(A - B)
-    return lb / (m * objective.D) * (h ** 2).sum(1) / objective.D ** 2
+    """Containment value of the bones ``A -> B`` (rows), as
+    :func:`..objective.terms.contain_term` computes it."""
+    s = objective.samples
+    return bone_contain(A, B, np.zeros((len(A), 2), np.int64), objective.mesh.inside,
+                        objective.tree, s.points, s.normal, objective.D,
+                        objective.margin(len(A)), 0, jacobian=None)
 
 
 def merge_gains(objective, graph, evaluation):
@@ -111,16 +108,17 @@ def merge_gains(objective, graph, evaluation):
     smooth = _smooth(Z, rows_k, rows_a, rows_b, D)
     d_smooth = np.bincount(owner, sign * smooth, len(k))
     d_centre = np.zeros(len(k))
+    # the new bone (a, b) replaces b1 and b2; its thickness the mean of theirs
+    thick = objective.thickness(graph)
     if w.centre:
-        # the new bone (a, b) replaces b1 and b2; its thickness the mean of theirs
-        thick = objective.thickness(graph)
-        old = bone_centres(X[bones[:, 0]], X[bones[:, 1]], bones, objective.mesh, D, thick,
+        old = bone_centres(X[bones[:, 0]], X[bones[:, 1]], bones, objective.section_mesh, D, thick,
                            J, jacobian=None)
-        new = bone_centres(X[a], X[b], np.stack([a, b], 1), objective.mesh, D,
+        new = bone_centres(X[a], X[b], np.stack([a, b], 1), objective.section_mesh, D,
                            0.5 * (thick[b1] + thick[b2]), J, jacobian=None)
         d_centre = new - old[b1] - old[b2]
-    d_contain = (_contain(objective, X[a], X[b]) - _contain(objective, X[k], X[a])
-                 - _contain(objective, X[k], X[b]))
+    old_con = _contain(objective, X[bones[:, 0]], X[bones[:, 1]])
+    d_contain = (_contain(objective, X[a], X[b])
+                 - old_con[b1] - old_con[b2])
     delta = (d_fit + w.centre * d_centre + w.smooth * d_smooth + w.contain * d_contain
              - w.joint)
     return k, a, b, delta
@@ -139,8 +137,9 @@ def prune_gains(objective, graph, evaluation, chains):
     B = len(bones)
     out = np.full(len(chains), np.inf)
     thick = objective.thickness(graph)
-    cen = (bone_centres(X[bones[:, 0]], X[bones[:, 1]], bones, objective.mesh, D, thick,
+    cen = (bone_centres(X[bones[:, 0]], X[bones[:, 1]], bones, objective.section_mesh, D, thick,
                         len(Z), jacobian=None) if w.centre else np.zeros(B))
+    con = _contain(objective, X[bones[:, 0]], X[bones[:, 1]])
     k_all, a_all, b_all = chain_neighbours(bones, len(Z))
     sm_all = smooth_triplets(Z, k_all, a_all, b_all, D, jacobian=None)
     sm_of = np.zeros(len(Z))
@@ -160,7 +159,7 @@ def prune_gains(objective, graph, evaluation, chains):
         ij = bones[bone[s]]
         S = t[s, None] * Z[ij[:, 0]] + (1 - t[s, None]) * Z[ij[:, 1]]
         rest = np.setdiff1d(np.arange(B), bs)
-        nb, tn, _ = closest_on_bones(P, Z, bones[rest])
+        nb, tn, _ = nearest_on_silhouette(P, Z, bones[rest])
         bi, bj = bones[rest[nb], 0], bones[rest[nb], 1]
         Sn = tn[:, None] * Z[bi] + (1 - tn)[:, None] * Z[bj]
         d_fit = float((fit_values(P, ws, Sn, objective.area, sc)
@@ -171,7 +170,7 @@ def prune_gains(objective, graph, evaluation, chains):
             p, q = [int(bones[ob, 0] if bones[ob, 1] == v else bones[ob, 1]) for ob in other]
             d_sm += float(smooth_triplets(Z, np.array([v]), np.array([p]), np.array([q]), D,
                                           jacobian=None)[0])
-        d_con = -float(_contain(objective, X[bones[bs, 0]], X[bones[bs, 1]]).sum())
+        d_con = -float(con[bs].sum())
         out[c] = (d_fit + w.centre * d_cen + w.smooth * d_sm + w.contain * d_con
                   - w.joint * len(js) - w.branch)
     return out

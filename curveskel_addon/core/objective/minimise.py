@@ -48,9 +48,10 @@ def minimise(objective, graph, *, max_iterations, tolerance, fixed=None,
         for c in range(3):
             free[4 * fx + c] = False
     mu = 1e-3
+    nu = 2.0
     it = 0
     for it in range(1, max_iterations + 1):
-        H, g = objective.model(graph, (ev.bone, ev.t))
+        H, g = objective.model(graph, ev.sigma)
         Hf, gf = H[free][:, free], g[free]
         dg = Hf.diagonal().copy()
         dg = np.maximum(dg, 1e-12 * max(float(dg.max(initial=0.0)), 1e-300))
@@ -61,17 +62,19 @@ def minimise(objective, graph, *, max_iterations, tolerance, fixed=None,
             except RuntimeError:                     # singular: more damping
                 mu *= 10.0
                 continue
-            z = np.array(graph.joints).ravel()
-            z[free] += step
-            Z = z.reshape(-1, 4)
-            Z[:, 3] = np.abs(Z[:, 3])
-            trial = graph.with_joints(Z)
+            trial = _moved(graph, free, step)
             ev_t = objective.evaluate(trial)
+            # the model's predicted decrease, for Nielsen's damping update
+            predicted = -(gf @ step + 0.5 * step @ (Hf @ step))
             if ev_t.value < ev.value:
                 kept = True
-                mu = max(mu / 3.0, 1e-12)
+                rho = (ev.value - ev_t.value) / max(predicted, 1e-300)
+                mu *= max(1.0 / 3.0, 1.0 - (2.0 * min(rho, 1.0) - 1.0) ** 3)
+                mu = max(mu, 1e-12)
+                nu = 2.0
                 break
-            mu *= 4.0
+            mu *= nu
+            nu *= 2.0
         if not kept:
             break
         drop = ev.value - ev_t.value
@@ -79,3 +82,13 @@ def minimise(objective, graph, *, max_iterations, tolerance, fixed=None,
         if drop < tolerance * ev.value:
             break
     return graph, ev, it
+
+
+def _moved(graph, free, step):
+    """``graph`` with ``step`` added to its free variables (radii kept positive: r enters J
+    squared, as in the paper)."""
+    z = np.array(graph.joints).ravel()
+    z[free] += step
+    Z = z.reshape(-1, 4)
+    Z[:, 3] = np.abs(Z[:, 3])
+    return graph.with_joints(Z)

@@ -31,7 +31,7 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from ..config import CONFIG, Weights
-from ..geometry.segments import closest_on_bones
+from ..geometry.segments import closest_on_bones, nearest_on_silhouette
 from ..graph import candidates_from_pairs
 from . import terms as T
 
@@ -47,12 +47,14 @@ def weights_for(params) -> Weights:
 
 @dataclass(frozen=True)
 class Evaluation:
-    """J of one skeleton: its value, each term's (unweighted) value and sigma."""
+    """J of one skeleton: its value, each term's (unweighted) value and sigma (``bone``, ``t``:
+    each sample's nearest cone; ``sigma``: its candidates, as :meth:`Objective.sigma`)."""
 
     value: float
     terms: dict
     bone: np.ndarray = field(repr=False)
     t: np.ndarray = field(repr=False)
+    sigma: tuple = field(repr=False, default=None)
 
 
 class Objective:
@@ -70,18 +72,28 @@ class Objective:
     paper : (region (s,) int, graph) or None
         The Reeb region of every sample and the first approximation, for the paper's E with
         its own sigma (reported, not minimised).
+    sections : Mesh, optional
+        The mesh the centring's cross-sections are cut from (a coarser copy at the samples'
+        resolution, :meth:`..mesh.Mesh.coarsened`; default ``mesh``).
+    resolution : float, optional
+        The finest length the method resolves (the first approximation's spacing times D; by
+        default the least of ``scale``): containment keeps bones a share of it inside.
     """
 
-    def __init__(self, mesh, samples, weights: Weights, scale, paper=None):
+    def __init__(self, mesh, samples, weights: Weights, scale, paper=None, sections=None,
+                 resolution=None):
         self.mesh, self.samples, self.weights = mesh, samples, weights
+        self.section_mesh = mesh if sections is None else sections
         self.scale = np.asarray(scale, np.float64)
         self.area = float(samples.weights.sum())
         self.D = mesh.D
         self.tree = cKDTree(samples.points)
         self.region = None if paper is None else np.asarray(paper, np.int64)
+        self.resolution = float(np.min(self.scale, initial=mesh.D) if resolution is None
+                                else resolution)
 
     @classmethod
-    def for_first_approximation(cls, mesh, samples, region, graph, weights, spacing):
+    def for_first_approximation(cls, mesh, samples, region, graph, weights, spacing, sections=None):
         """J for a mesh whose first approximation is ``graph``: each sample's thickness is its
         distance from the first approximation, on the bones of its Reeb region (at least
         ``CONFIG.objective.thickness_floor`` spacings)."""
@@ -89,12 +101,16 @@ class Objective:
         cand = candidates_from_pairs(graph.pairs, region, n_reg)
         _, _, d2 = closest_on_bones(samples.points, graph.joints, graph.bones, cand)
         floor = CONFIG.objective.thickness_floor * spacing * mesh.D
-        return cls(mesh, samples, weights, np.maximum(np.sqrt(d2), floor), paper=region)
+        return cls(mesh, samples, weights, np.maximum(np.sqrt(d2), floor), paper=region,
+                   sections=sections, resolution=spacing * mesh.D)
 
     def sigma(self, graph):
-        """(bone, t) of every sample: its nearest point on any bone."""
-        bone, t, _ = closest_on_bones(self.samples.points, graph.joints, graph.bones)
-        return bone, t
+        """(bone, t) of every sample, each (s, k): its points on the ``k`` bones whose cones'
+        surfaces are nearest, nearest first (:func:`..geometry.segments.nearest_on_silhouette`;
+        ``k = CONFIG.objective.soft_bones``, the fit's soft minimum runs over them)."""
+        bone, t, _ = nearest_on_silhouette(self.samples.points, graph.joints, graph.bones,
+                                           CONFIG.objective.soft_bones)
+        return bone.reshape(len(t), -1), t.reshape(len(t), -1)
 
     def paper_sigma(self, graph):
         """The paper's sigma: each sample on the bones of its own Reeb region."""
@@ -110,11 +126,16 @@ class Objective:
             return np.asarray(graph.thick)
         return self.measure_thickness(graph)
 
+    def margin(self, n_bones) -> np.ndarray:
+        """How deep inside each bone must keep (containment): a share of the resolution (of
+        a part's thickness, a flap's would be out of reach)."""
+        return np.full(n_bones, CONFIG.objective.contain_margin * self.resolution)
+
     def measure_thickness(self, graph, bone=None) -> np.ndarray:
         """(B,) the area-weighted mean thickness of the samples nearest each bone (``bone``:
         their bones, if known); the median where none is."""
         if bone is None:
-            bone = self.sigma(graph)[0]
+            bone = self.sigma(graph)[0][:, 0]
         B = len(graph.bones)
         w = self.samples.weights
         W = np.bincount(bone, w, B)
@@ -123,21 +144,24 @@ class Objective:
 
     def _blocks(self, Z, bones, bone, t, jacobian):
         w, s, D = self.weights, self.samples, self.D
-        out = {"fit": (1.0, T.fit_term(Z, s, bones, bone, t, self.area, self.scale,
+        out = {"fit": (1.0, T.fit_term(Z, s, bones, bone, self.area, self.scale,
+                                       softness=CONFIG.objective.fit_softness,
                                        jacobian=jacobian))}
         if w.centre:
-            out["centre"] = (w.centre, T.centre_term(Z, bones, self.mesh, D, self._thick,
+            out["centre"] = (w.centre, T.centre_term(Z, bones, self.section_mesh, D, self._thick,
                                                      jacobian=jacobian))
         if w.smooth:
             out["smooth"] = (w.smooth, T.smooth_term(Z, bones, D, jacobian=jacobian))
         if w.contain:
             out["contain"] = (w.contain, T.contain_term(Z, bones, self.mesh.inside, self.tree,
-                                                        s.points, s.normal, D, jacobian=jacobian))
+                                                        s.points, s.normal, D, self.margin(len(bones)),
+                                                        jacobian=jacobian))
         return out
 
     def evaluate(self, graph, sigma=None) -> Evaluation:
         """J of ``graph`` (sigma: its own nearest points unless given)."""
         bone, t = self.sigma(graph) if sigma is None else sigma
+        bone, t = np.asarray(bone).reshape(len(t), -1), np.asarray(t).reshape(len(t), -1)
         self._thick = self.thickness(graph)
         Z = np.asarray(graph.joints)
         blocks = self._blocks(Z, graph.bones, bone, t, False)
@@ -146,7 +170,28 @@ class Objective:
         terms["joints"] = float(graph.n_joints)
         terms["tips"] = float(graph.n_leaves)
         value += self.weights.joint * terms["joints"] + self.weights.branch * terms["tips"]
-        return Evaluation(float(value), terms, bone, t)
+        return Evaluation(float(value), terms, bone[:, 0], t[:, 0], (bone, t))
+
+    def per_bone(self, graph, evaluation) -> np.ndarray:
+        """(B,) each bone's share of J's continuous terms: the fit of the samples nearest it,
+        its centring and containment (weighted as in J)."""
+        Z = np.asarray(graph.joints)
+        bones, B = graph.bones, len(graph.bones)
+        self._thick = self.thickness(graph)
+        w, s, D = self.weights, self.samples, self.D
+        r = T.fit_term(Z, s, bones, evaluation.sigma[0], self.area, self.scale,
+                       softness=CONFIG.objective.fit_softness, jacobian=False)[0]
+        out = np.bincount(evaluation.bone, r * r, B)
+        X = Z[:, :3]
+        if w.centre:
+            out += w.centre * T.bone_centres(X[bones[:, 0]], X[bones[:, 1]], bones,
+                                             self.section_mesh, D, self._thick, len(Z),
+                                             jacobian=None)
+        if w.contain:
+            out += w.contain * T.bone_contain(X[bones[:, 0]], X[bones[:, 1]], bones,
+                                              self.mesh.inside, self.tree, s.points, s.normal,
+                                              D, self.margin(B), len(Z), jacobian=None)
+        return out
 
     def paper_energy(self, graph) -> float:
         """The paper's E (eq. 8 over the samples, its own sigma), in units of D: reported."""

@@ -32,9 +32,12 @@ smooth
     joint's two bones (0 straight on, 1 at a right angle, whatever the size), ``m_k`` the mean
     of its two bone lengths (the radius's second difference per length).
 contain
-    How far the bones leave the mesh: at points along every bone that lie outside (the exact
-    inside test), their height above the tangent plane of the nearest surface sample:
-    ``sum_q (l_q / D) max(0, h_q)^2 / D^2``.
+    How far the bones come closer to the surface than a margin, or leave the mesh: at points
+    along every bone, their signed height ``s_q`` over the surface (:func:`surface_heights`),
+    ``sum_q (l_q / D) (margin / D)^2 softplus((s_q + margin) / margin)^2``, ``margin`` a
+    share of the first approximation's spacing (``CONFIG.objective.contain_margin``): about
+    the squared height beyond the surface, next to nothing a few margins inside, and smooth
+    between (a hinge at the margin would be invisible to a step until it crosses).
 """
 
 from __future__ import annotations
@@ -46,7 +49,7 @@ from ..config import CONFIG
 from ..geometry.rows import row_norm
 
 __all__ = ["fit_term", "fit_values", "fit_residuals", "paper_energy", "centre_term", "bone_centres", "smooth_term", "smooth_triplets",
-           "contain_term", "chain_neighbours", "BONE_POINTS"]
+           "contain_term", "bone_contain", "surface_heights", "chain_neighbours", "BONE_POINTS"]
 
 #: Where along every bone (ends included) containment is measured.
 BONE_POINTS = np.linspace(0.0, 1.0, CONFIG.objective.bone_points)
@@ -103,10 +106,21 @@ def fit_values(P, w, S, area, scale):
     return w / area * 2.0 * (np.sqrt(1.0 + z * z) - 1.0)
 
 
-def fit_term(Z, samples, bones, bone, t, area, scale, *, jacobian=True):
-    """Residuals ``sqrt(w_s / A) psi((|p_s - sigma_s| - r(sigma_s)) / scale_s)`` (and Jacobian),
-    ``psi^2`` the pseudo-Huber loss: squares for errors within the part's thickness, linear
-    beyond (a point sigma maps far from its bone, at a junction, must not inflate the ball).
+def fit_term(Z, samples, bones, bone, area, scale, *, softness=0.0, jacobian=True):
+    """Residuals ``sqrt(w_s / A) psi(v_s / scale_s)`` (and Jacobian), ``psi^2`` the
+    pseudo-Huber loss (squares for errors within the part's thickness, linear beyond: a point
+    mapped far from its bone, at a junction, must not inflate the ball), ``v_s`` the sample's
+    distance to the silhouette: with one bone per sample ``|p_s - sigma_s| - r(sigma_s)``,
+    ``sigma_s`` the closest point of the bone's axis; with ``k`` candidate bones per sample
+    (``bone`` of shape (s, k)), the soft minimum ``-tau log sum_k exp(-v_sk / tau)``,
+    ``tau = softness * scale_s``, of their values.
+
+    The bones are held, the points on them are not: sigma is the closest point of the bone
+    for the joints as they are, and the Jacobian follows it (along a tapered bone the radius
+    at sigma changes as sigma slides; holding sigma's parameter instead makes a Gauss-Newton
+    step mispredict the fit). The soft minimum makes the fit smooth where the nearest cone
+    changes (the least of two smooth functions has a kink there, which a step holding the
+    choice cannot see), and a sample inside two cones at a junction asks both to shrink.
 
     Parameters
     ----------
@@ -114,29 +128,62 @@ def fit_term(Z, samples, bones, bone, t, area, scale, *, jacobian=True):
         Joints (x, y, z, r).
     samples : Samples
     bones : (B, 2) int
-    bone, t : (s,) int, (s,) float
-        sigma of every sample: ``t`` at ``bones[bone, 0]``, ``1 - t`` at the other end.
+    bone : (s,) or (s, k) int
+        Each sample's bone (its candidates).
     area : float
     scale : float or (s,) float
         The thickness of each sample's part: the unit its distance is measured in.
+    softness : float
+        tau in units of ``scale`` (for ``k > 1``).
     """
-    ij = bones[bone]
-    i, j = ij[:, 0], ij[:, 1]
-    d, rho, _ = fit_residuals(Z, samples, bones, bone, t)
-    dist = np.sqrt(np.einsum("ij,ij->i", d, d))
-    sc = np.asarray(scale, np.float64)
-    z = (dist - rho) / sc
+    bone = np.asarray(bone).reshape(len(samples.points), -1)
+    n, k = bone.shape
+    sc = np.broadcast_to(np.asarray(scale, np.float64), (n,))
+    ij = bones[bone]                                            # (n, k, 2)
+    Zi, Zj = Z[ij[:, :, 0]], Z[ij[:, :, 1]]
+    dv = Zi[:, :, :3] - Zj[:, :, :3]                            # d = x_i - x_j
+    dd = np.einsum("nkc,nkc->nk", dv, dv)
+    w = samples.points[:, None, :] - Zj[:, :, :3]
+    t_free = np.einsum("nkc,nkc->nk", w, dv) / np.where(dd > 0, dd, 1.0)
+    t = np.clip(np.where(dd > 0, t_free, 0.0), 0.0, 1.0)
+    S = t[:, :, None] * Zi + (1.0 - t)[:, :, None] * Zj
+    d = samples.points[:, None, :] - S[:, :, :3]
+    dist = np.sqrt(np.einsum("nkc,nkc->nk", d, d))
+    v = dist - S[:, :, 3]
+    if k > 1:
+        tau = (softness * sc)[:, None]
+        m = v.min(axis=1, keepdims=True)
+        e = np.exp(-(v - m) / tau)
+        W = e.sum(axis=1, keepdims=True)
+        soft = (m - tau * np.log(W))[:, 0]
+        share = e / W                                           # d soft / d v_k
+    else:
+        soft, share = v[:, 0], np.ones((n, 1))
+    z = soft / sc
     psi, dpsi = _pseudo_huber(z)
     c = np.sqrt(samples.weights / area)
     res = c * psi
     if not jacobian:
         return res, None
-    n, J = len(t), len(Z)
-    G = np.column_stack([d / np.maximum(dist, 1e-300)[:, None], np.ones(n)]) * (-c * dpsi / sc)[:, None]
-    rows = np.repeat(np.arange(n), 4)
+    # v = |p - s| - r(s), s = t x_i + (1 - t) x_j, t the closest point's parameter:
+    # dv/dx_i = -t u - (r_i - r_j) dt/dx_i, dv/dr_i = -t (and with 1 - t for j), u the unit
+    # vector from s to p; d|p - s|/dt = 0 at an inner closest point, dt = 0 where t is clipped;
+    # dt/dx_i = ((p - x_j) - 2 t d) / d.d, dt/dx_j = (2 t d - d - (p - x_j)) / d.d
+    u = d / np.maximum(dist, 1e-300)[:, :, None]
+    inner = ((t_free > 0) & (t_free < 1) & (dd > 0))[:, :, None]
+    inv = (1.0 / np.where(dd > 0, dd, 1.0))[:, :, None]
+    dt_i = np.where(inner, (w - 2.0 * t[:, :, None] * dv) * inv, 0.0)
+    dt_j = np.where(inner, (2.0 * t[:, :, None] * dv - dv - w) * inv, 0.0)
+    taper = (Zi[:, :, 3] - Zj[:, :, 3])[:, :, None]
+    f = (c * dpsi / sc)[:, None, None] * share[:, :, None]
+    Gi = np.concatenate([-t[:, :, None] * u - taper * dt_i, -t[:, :, None]], axis=2) * f
+    Gj = np.concatenate([-(1.0 - t)[:, :, None] * u - taper * dt_j, -(1.0 - t)[:, :, None]],
+                        axis=2) * f
+    rows = np.repeat(np.arange(n), 4 * k)
     col4 = np.arange(4)
-    return res, _jac([rows, rows], [(4 * i[:, None] + col4).ravel(), (4 * j[:, None] + col4).ravel()],
-                     [(G * t[:, None]).ravel(), (G * (1.0 - t)[:, None]).ravel()], n, J)
+    ci = (4 * ij[:, :, 0, None] + col4).reshape(n, -1).ravel()
+    cj = (4 * ij[:, :, 1, None] + col4).reshape(n, -1).ravel()
+    return res, _jac([rows, rows], [ci, cj], [Gi.ravel(), Gj.ravel()], n, len(Z))
 
 
 #: Where along a bone the centring is measured, and how much each point weighs: the two-point
@@ -272,44 +319,71 @@ def smooth_triplets(Z, k, a, b, D, *, jacobian=True):
     return res, _jac(rows, cols, vals, 4 * m, J)
 
 
-def contain_term(Z, bones, inside, tree, points, normals, D, *, jacobian=True):
-    """Residuals ``sqrt(l_b / (m D)) max(0, h_q) / D`` at the ``m`` points ``BONE_POINTS``
-    of every bone ``b`` (length ``l_b``) that lie outside the mesh (``inside``: its exact
-    inside test), ``h_q`` the height of point ``q`` above the tangent plane of its nearest
-    surface sample (``tree``: a KD-tree of ``points``, with their ``normals``); and their
-    Jacobian (the nearest sample held). Zero for a point inside; at the surface, where it
-    leaves, ``h`` is zero too."""
-    J = len(Z)
+def surface_heights(Q, inside, tree, points, normals):
+    """Signed height of points ``Q`` over the surface, and its gradient: inside the mesh (its
+    exact test ``inside``) the height above the tangent plane of the nearest surface sample
+    (negative), outside the larger of that and the distance to the sample (a point outside a
+    concave part can lie below a tangent plane). Continuous where a point crosses the surface:
+    both are zero there."""
+    _, nn = tree.query(Q)
+    p, n = points[nn], normals[nn]
+    w = Q - p
+    h = np.einsum("ij,ij->i", w, n)
+    dist = row_norm(w)
+    out = ~inside(Q)
+    far = out & (dist > h)
+    s = np.where(far, dist, h)
+    g = np.where(far[:, None], w / np.maximum(dist, 1e-300)[:, None], n)
+    return s, g
+
+
+def contain_term(Z, bones, inside, tree, points, normals, D, margin, *, jacobian=True):
+    """:func:`bone_contain` of every bone of the graph (``margin[b]`` per bone)."""
+    X = Z[:, :3]
+    return bone_contain(X[bones[:, 0]], X[bones[:, 1]], bones, inside, tree, points, normals, D,
+                        margin, len(Z), jacobian=jacobian)
+
+
+def bone_contain(A, B, bones, inside, tree, points, normals, D, margin, n_joints, *,
+                 jacobian=True):
+    """Residuals ``sqrt(l_b / (m D)) (margin_b / D) softplus((s_q + margin_b) / margin_b)`` at
+    the ``m`` points ``BONE_POINTS`` of every segment ``A[b] -> B[b]`` (length ``l_b``; rows of
+    ``bones`` give its joints, for the Jacobian), ``s_q`` the point's signed height over the
+    surface (:func:`surface_heights`), ``margin_b`` how deep inside a bone keeps (a curve
+    grazing the surface from inside is outside a step later); and their Jacobian (the nearest
+    sample held). ``jacobian=None`` returns the value per segment (for the moves' estimates)."""
     u = BONE_POINTS
     m = len(u)
-    X = Z[:, :3]
-    i, j = bones[:, 0], bones[:, 1]
-    vb = X[i] - X[j]
+    nb = len(A)
+    vb = A - B
     lb = row_norm(vb)
-    Q = (u[None, :, None] * X[i][:, None, :] + (1 - u)[None, :, None] * X[j][:, None, :]).reshape(-1, 3)
-    res = np.zeros(len(Q))
-    out = np.flatnonzero(~inside(Q))
-    if len(out):
-        _, nn = tree.query(Q[out])
-        nq = normals[nn]
-        h = np.maximum(np.einsum("ij,ij->i", Q[out] - points[nn], nq), 0.0)
-        res[out] = np.sqrt(lb[out // m] / (m * D)) * h / D
+    Q = (u[None, :, None] * A[:, None, :] + (1 - u)[None, :, None] * B[:, None, :]).reshape(-1, 3)
+    s, g = surface_heights(Q, inside, tree, points, normals)
+    bq_all = np.repeat(np.arange(nb), m)
+    mq = np.repeat(np.broadcast_to(np.asarray(margin, np.float64), (nb,)), m)
+    # softplus of the height over the margin line, in margins: ~0 deep inside, 1.3 margins on
+    # the surface, the height itself beyond; smooth, so a step towards the surface sees it
+    x = (s + mq) / mq
+    sp = np.logaddexp(0.0, x)
+    sw_all = np.sqrt(lb[bq_all] / (m * D))
+    res = sw_all * mq * sp / D
+    if jacobian is None:
+        return np.bincount(bq_all, res * res, nb)
     if not jacobian:
         return res, None
-    act = out[res[out] > 0]
-    hp = res[act] / np.sqrt(lb[act // m] / (m * D)) * D if len(act) else np.zeros(0)
-    nqa = nq[res[out] > 0] if len(out) else np.zeros((0, 3))
-    uq = u[act % m]
-    bq = act // m
+    act = np.flatnonzero(res > 1e-12 * np.maximum(mq, 1e-300) / D)
+    bq, uq = bq_all[act], u[act % m]
     lq = lb[bq]
-    sw = np.sqrt(lq / (m * D))
-    # d sqrt(l/(mD)) / dx_i = (1 / (2 sqrt(l m D))) (x_i - x_j)/l
+    sw = sw_all[act]
+    # d sqrt(l/(mD)) / dx_i = (1 / (2 sqrt(l m D))) (x_i - x_j)/l;  d sp / ds = sigmoid(x) / margin
     ub = vb[bq] / np.maximum(lq, 1e-300)[:, None]
-    g = 1.0 / (2.0 * np.sqrt(lq * m * D))
-    hd = hp / D
-    di = sw[:, None] * uq[:, None] * nqa / D + (hd * g)[:, None] * ub
-    dj = sw[:, None] * (1 - uq)[:, None] * nqa / D - (hd * g)[:, None] * ub
+    gl = 1.0 / (2.0 * np.sqrt(np.maximum(lq, 1e-300) * m * D))
+    hd = mq[act] * sp[act] / D
+    slope = (sw / D) * (0.5 * (1.0 + np.tanh(0.5 * x[act])))      # sw margin/D dsp/ds
+    di = (slope * uq)[:, None] * g[act] + (hd * gl)[:, None] * ub
+    dj = (slope * (1 - uq))[:, None] * g[act] - (hd * gl)[:, None] * ub
     rows = np.repeat(act, 3)
     c3 = np.arange(3)
-    return res, _jac([rows, rows], [(4 * i[bq][:, None] + c3).ravel(), (4 * j[bq][:, None] + c3).ravel()],
-                     [di.ravel(), dj.ravel()], len(res), J)
+    i, j = bones[bq, 0], bones[bq, 1]
+    return res, _jac([rows, rows], [(4 * i[:, None] + c3).ravel(), (4 * j[:, None] + c3).ravel()],
+                     [di.ravel(), dj.ravel()], len(res), n_joints)
