@@ -266,9 +266,14 @@ class _Targets:
 
     @classmethod
     def poll(cls, context):
-        _, _, problem = _targets(context)
-        if problem is not None:
-            cls.poll_message_set(problem)
+        # the armature is checked in execute: a script may name one (``armature=``) that the
+        # panel has not chosen, and poll cannot see the operator's properties
+        ob = context.active_object
+        if ob is None or ob.type != 'MESH':
+            cls.poll_message_set("Make the mesh to evaluate against the active object")
+            return False
+        if context.mode != 'OBJECT':
+            cls.poll_message_set("Switch to Object Mode")
             return False
         return True
 
@@ -503,6 +508,7 @@ class CURVESKEL_PT_evaluate(bpy.types.Panel):
         col.prop(s, "armature")
         col.prop(s, "heat_range")
         row = layout.row(align=True)
+        row.enabled = s.armature is not None
         op = row.operator("curveskel.evaluate", icon='VIEWZOOM')
         op.heat_range = s.heat_range
         op = row.operator("curveskel.refine", icon='MOD_ARMATURE')
