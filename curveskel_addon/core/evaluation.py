@@ -40,7 +40,7 @@ from .mesh import Mesh
 from .mesh_input import clean_mesh
 from .objective.for_skeleton import common_scale, objective_for_skeleton, skeleton_graph
 from .objective.minimise import minimise
-from .objective.terms import BONE_POINTS, bone_centres, fit_values
+from .objective.terms import BONE_POINTS, bone_centres, fit_term
 from .params import SkeletonParams, check_params
 from .skeleton_input import OutsideSkeleton, as_outside_skeleton
 
@@ -322,7 +322,11 @@ def _per_bone(fit, graph, ev, inside) -> dict:
     res = np.abs(row_norm(s.points - S[:, :3]) - S[:, 3]) / obj.D
     W = np.bincount(ev.bone, s.weights, B)
     misfit = np.bincount(ev.bone, s.weights * res, B) / np.maximum(W, 1e-300)
-    share = np.bincount(ev.bone, fit_values(s.points, s.weights, S, obj.area, obj.scale), B)
+    # each sample's fit as J has it (the soft minimum over its candidate bones), given to its
+    # nearest bone: the shares add up to J's fit term
+    r = fit_term(Z, s, graph.bones, ev.sigma[0], obj.area, obj.scale,
+                 softness=CONFIG.objective.fit_softness, jacobian=False)[0]
+    share = np.bincount(ev.bone, r * r, B)
     X = Z[:, :3]
     centre = (bone_centres(X[graph.bones[:, 0]], X[graph.bones[:, 1]], graph.bones, obj.mesh,
                            obj.D, obj.thickness(graph), graph.n_joints, jacobian=None)

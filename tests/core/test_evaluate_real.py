@@ -57,11 +57,17 @@ def test_the_missing_finger_is_where_the_skeleton_fits_badly():
     rep = evaluate(V, F, without)
     red = np.abs(rep.vertex_residual) / rep.D >= HEAT_RANGE      # full red on the heat map
     assert red[finger].mean() > 0.7
-    assert red[~finger].mean() < 0.05
     # the whole skeleton explains the finger: no red there, and J is lower
     full = evaluate(V, F, whole)
-    assert (np.abs(full.vertex_residual[finger]) / full.D >= HEAT_RANGE).mean() == 0
+    full_red = np.abs(full.vertex_residual) / full.D >= HEAT_RANGE
+    assert full_red[finger].mean() == 0
     assert full.J < rep.J
+    # outside the finger, taking it away adds no red: what is red there is red with the whole
+    # skeleton too (round radii on the flat palm and the wrist's cut: 8 % of those vertices
+    # with J's radii since the objective's merge), and the typical vertex is far from red
+    assert red[~finger].mean() <= full_red[~finger].mean() + 0.01
+    res = np.abs(rep.vertex_residual) / rep.D
+    assert np.median(res[~finger]) < 0.2 * HEAT_RANGE < HEAT_RANGE < np.median(res[finger])
 
 
 def test_metarig_on_the_human_moves_inside_and_keeps_every_bone():
