@@ -72,7 +72,8 @@ def test_rigify_metarig_scaled_onto_the_human_is_refined_inside(make_mesh):
     raised to the T-pose. Refine moves its joints inside the body (the inside fraction from
     below 1 to at least 0.98) and lowers J; bone names, parents, connections and deform flags
     stay."""
-    addon_utils.enable("rigify", default_set=False)
+    if not addon_utils.check("rigify")[1]:
+        addon_utils.enable("rigify", default_set=False)
     mesh = _character(make_mesh, "human")
     assert bpy.ops.object.armature_basic_human_metarig_add() == {'FINISHED'}
     arm = bpy.context.active_object
@@ -178,8 +179,12 @@ def test_hand_built_armature_for_the_woman(make_mesh):
         np.testing.assert_array_equal(T1[i], T0[i])
     assert np.abs(np.r_[H1, T1] - np.r_[H0, T0]).max() > 1e-3
     # Bind works on the refined armature as on a generated one
+    for ob in bpy.context.selected_objects:
+        ob.select_set(False)
+    mesh.select_set(True)
+    arm.select_set(True)                               # Blender's usual order: mesh, then armature
     bpy.context.view_layer.objects.active = mesh
-    assert bpy.ops.curveskel.bind(armature=arm.name) == {'FINISHED'}
+    assert bpy.ops.curveskel.bind() == {'FINISHED'}
     groups = {g.name for g in mesh.vertex_groups}
     assert {"hips", "chest", "upper_arm.L"} <= groups and "hand.L" not in groups
 
