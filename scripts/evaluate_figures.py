@@ -167,23 +167,48 @@ def _armature_from_segments(name, joints, bones, root):
     return ob
 
 
+def _face_on(cam, V, scene) -> None:
+    """The camera looking at the hand's palm (along its thinnest principal axis, from the side
+    it points to), its longest axis across the picture,
+    tilted 20 degrees so that the fingers' sides show; moved back until all of it is in frame."""
+    from mathutils import Matrix
+
+    from curveskel_addon import framing
+
+    P = np.asarray(V, float)
+    _, _, Vt = np.linalg.svd(P - P.mean(0), full_matrices=False)
+    x, z = Vt[0], Vt[2]                      # longest axis across, thinnest towards the camera
+    if z[2] < 0:
+        z = -z
+    y = np.cross(z, x)
+    R = np.array(Matrix.Rotation(np.radians(20.0), 3, x.tolist()) @ Matrix(np.c_[x, y, z].tolist()))
+    cam.rotation_euler = Matrix(R.tolist()).to_euler()
+    tan_x, tan_y = framing.half_fov(cam.data.lens, cam.data.sensor_width,
+                                    scene.render.resolution_x, scene.render.resolution_y)
+    fit = framing.fit_camera(P, np.array(cam.rotation_euler.to_matrix()), tan_x, tan_y)
+    cam.location = fit.location.tolist()
+    cam.data.clip_start, cam.data.clip_end = fit.clip_start, fit.clip_end
+
+
 def run_heatmap(args) -> None:
+    """Two hands side by side, each coloured by *Evaluate Skeleton*'s heat map: left, CGAL's
+    whole skeleton of the hand; right, the same skeleton without one finger (radii fitted by J
+    for both: joints only, as an armature has). What is red on both (the flat palm's edges,
+    which round radii cannot follow) is the skeleton's own misfit; the finger is red only where
+    its bones are missing."""
     import bpy
 
     from curveskel_addon import headless
+    from curveskel_addon.measure.evaluation import HEAT_RANGE
     from curveskel_addon.ops_evaluate import FIT_ATTRIBUTE, stored_report
     from outside_skeletons import hand_without_a_finger
 
-    V, F, (J, B), _, finger = hand_without_a_finger()
+    V, F, (J, B), (Jw, Bw), finger = hand_without_a_finger()
     headless.reset_scene()
     headless.ensure_registered()
-    mesh = headless.mesh_object_from_arrays("hand", V, F)
-    arm = _armature_from_segments("hand.rig", J, B, root=int(np.argmin(J[:, 1])))
-    bpy.context.view_layer.objects.active = mesh
-    bpy.ops.curveskel.evaluate(armature=arm.name)
-    rep = stored_report(mesh)
-    print(f"hand without a finger: J {rep['J']:.4g}, inside {rep['inside_fraction']:.3f}")
-    # the picture: the mesh coloured by the heat map, lit; the armature hidden
+    P = np.asarray(V, float)
+    _, _, Vt = np.linalg.svd(P - P.mean(0), full_matrices=False)
+    shift = 1.1 * np.ptp(P @ Vt[0]) * Vt[0]          # along the hand's longest axis
     mat = bpy.data.materials.new("heat map")
     if bpy.app.version < (5, 0, 0):
         mat.use_nodes = True
@@ -194,16 +219,33 @@ def run_heatmap(args) -> None:
     links.new(attr.outputs["Color"], bsdf.inputs["Base Color"])
     links.new(attr.outputs["Color"], bsdf.inputs["Emission Color"])
     bsdf.inputs["Emission Strength"].default_value = 0.35
-    mesh.data.materials.append(mat)
-    for ob in bpy.data.objects:
-        if ob.type != 'MESH' or ob == mesh:
+    meshes, everything = [], []
+    for label, (Jk, Bk), off in (("whole", (Jw, Bw), -0.5 * shift),
+                                 ("without a finger", (J, B), 0.5 * shift)):
+        mesh = headless.mesh_object_from_arrays(f"hand ({label})", P + off, F)
+        arm = _armature_from_segments(f"hand.rig ({label})", Jk + off, Bk,
+                                      root=int(np.argmin(Jk[:, 1])))
+        bpy.context.view_layer.objects.active = mesh
+        bpy.ops.curveskel.evaluate(armature=arm.name)
+        rep = stored_report(mesh)
+        res = np.array([a.value for a in mesh.data.attributes["curveskel_residual"].data])
+        red = np.abs(res) >= HEAT_RANGE * rep["D"]
+        print(f"hand, {label}: J {rep['J']:.4g}, inside {rep['inside_fraction']:.3f}, full red "
+              f"(|residual| >= {HEAT_RANGE} D) on the finger {red[finger].mean():.2f}, "
+              f"elsewhere {red[~finger].mean():.2f}")
+        mesh.data.materials.append(mat)
+        meshes.append(mesh)
+        everything.append(P + off)
+    for ob in bpy.data.objects:           # the armatures and their silhouettes: not in the picture
+        if ob not in meshes:
             ob.hide_render = True
     scene = bpy.context.scene
     coll = bpy.data.collections.new("picture")
     scene.collection.children.link(coll)
-    headless._setup_render(scene, FIGURE, (900, 700), 16)
+    headless._setup_render(scene, FIGURE, (1400, 620), 16)
     scene.cycles.max_bounces = 2
-    headless._camera(coll, mesh)
+    cam, _ = headless._camera(coll, meshes[0])
+    _face_on(cam, np.concatenate(everything), scene)
     headless._lights(coll)
     FIGURE.parent.mkdir(parents=True, exist_ok=True)
     bpy.ops.render.render(write_still=True)
