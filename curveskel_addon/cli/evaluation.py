@@ -100,17 +100,20 @@ def _write_json(doc: dict, out) -> None:
 
 def run(args, outs: dict, params, report, progress) -> int:
     """Evaluate, refine or compare; the files first, the text into ``report``."""
+    # the skeleton files first: a bad one is refused before the mesh is read
+    given = [args.evaluate or args.refine] if not args.compare else list(args.compare)
+    loaded = [load_outside_skeleton(p) for p in given]
     progress("read", 0.0)
     V, F = read_mesh(args.mesh)
     if args.evaluate:
-        sk = load_outside_skeleton(args.evaluate)
+        sk = loaded[0]
         progress("evaluate", 0.0)
         rep = full_report(V, F, evaluate(V, F, sk, params), vertices=True)
         lines = [f"skeleton    {args.evaluate}: {len(rep['joints'])} joints, "
                  f"{len(rep['bones'])} bones"] + report_lines(rep)
         doc = rep
     elif args.refine:
-        sk = load_outside_skeleton(args.refine)
+        sk = loaded[0]
         progress("refine", 0.0)
         res = refine(V, F, sk, fixed=args.fixed, edit_topology=args.edit_topology, params=params,
                      progress=progress)
@@ -128,7 +131,7 @@ def run(args, outs: dict, params, report, progress) -> int:
             lines.append(f"wrote       {args.json}")
     else:
         names = [str(p) for p in args.compare]
-        sks = [load_outside_skeleton(p) for p in args.compare]
+        sks = loaded
         progress("compare", 0.0)
         reps = [full_report(V, F, r) for r in compare(V, F, sks, params)]
         lines = compare_lines(names, reps)

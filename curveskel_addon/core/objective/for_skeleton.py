@@ -75,8 +75,13 @@ def objective_for_skeleton(mesh, samples, graph, params, scale=None):
         ``graph`` with each bone's thickness (the centring's unit), held from here on.
     """
     region, _ = _distance(samples, graph)
+    # the centring's cross-sections cut from a copy at the samples' resolution, as the
+    # pipeline's J has them (a 100k-vertex mesh: the same centres, a fraction of the time)
+    coarse = mesh.coarsened(CONFIG.objective.sample_length * params.spacing * mesh.D)
     objective = Objective.for_first_approximation(mesh, samples, region, graph,
-                                                  weights_for(params), params.spacing)
+                                                  weights_for(params), params.spacing,
+                                                  sections=coarse)
     if scale is not None:
-        objective = Objective(mesh, samples, objective.weights, scale, paper=region)
+        objective = Objective(mesh, samples, objective.weights, scale, paper=region,
+                              sections=coarse, resolution=objective.resolution)
     return objective, graph.with_thickness(objective.measure_thickness(graph))
