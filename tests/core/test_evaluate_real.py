@@ -43,6 +43,8 @@ def test_cgal_skeletons_refined_keep_their_shape(name):
     ref = REFERENCE / (name.rsplit(".", 1)[0] + ".json")
     sk = load_outside_skeleton(ref)
     res = refine(V, F, sk, params=SkeletonParams(max_iterations=STEPS))
+    print(f"\n{name}: J {res.before.J:.4g} -> {res.after.J:.4g}, inside "
+          f"{res.before.inside_fraction:.3f} -> {res.after.inside_fraction:.3f}")
     assert res.after.J < res.before.J
     assert res.before.topology["match"] and res.after.topology["match"]
     np.testing.assert_array_equal(res.skeleton.bones, sk.bones)
@@ -86,6 +88,8 @@ def test_metarig_on_the_human_moves_inside_and_keeps_every_bone():
     seg = armature_segments(scale * H + offset, scale * T + offset, parent, connected)
     run = Refinement(Vw, F, (seg.joints, seg.segments))
     res = run.result()
+    print(f"\nmetarig on the human: J {res.before.J:.4g} -> {res.after.J:.4g}, inside "
+          f"{res.before.inside_fraction:.3f} -> {res.after.inside_fraction:.3f}")
     assert res.before.inside_fraction < 0.9 and res.after.inside_fraction >= 0.98
     assert res.after.J < 0.3 * res.before.J
     assert run.held.any()
