@@ -178,6 +178,14 @@ def test_hand_built_armature_for_the_woman(make_mesh):
         np.testing.assert_array_equal(H1[i], H0[i])
         np.testing.assert_array_equal(T1[i], T0[i])
     assert np.abs(np.r_[H1, T1] - np.r_[H0, T0]).max() > 1e-3
+    # Keep Rolls: refined again (from where it is), every bone keeps its roll
+    ebs = _edit(arm)
+    rolls = np.array([ebs[n].roll for n in names])
+    _object_mode(mesh)
+    _refine(mesh, arm, keep_rolls=True)
+    ebs = _edit(arm)
+    np.testing.assert_allclose([ebs[n].roll for n in names], rolls, atol=1e-6)
+    _object_mode(mesh)
     # Bind works on the refined armature as on a generated one
     for ob in bpy.context.selected_objects:
         ob.select_set(False)
