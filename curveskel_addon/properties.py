@@ -74,6 +74,11 @@ class GenerateSettings:
                                       "with less than this share of the total area (scan debris; "
                                       "0 keeps all)", default=_D.min_component_area, min=0.0,
                                       max=0.99, precision=4, step=0.1)
+    separate_parts: BoolProperty(name="Separate Parts", description="One skeleton per loose "
+                                 "part, as modelled (by default parts that overlap or nearly "
+                                 "touch are joined where they meet and small free parts hang "
+                                 "from the nearest larger one: one armature)",
+                                 default=_D.separate_parts)
     make_armature: BoolProperty(name="Armature", description="Create an armature from the skeleton",
                                 default=True)
     make_silhouette: BoolProperty(name="Silhouette", description="Create an edge mesh with a Skin "
@@ -94,7 +99,8 @@ class GenerateSettings:
 
 #: Properties that are parameters of the core: every SkeletonParams field, the artist's first.
 PARAM_NAMES = SkeletonParams.ARTIST
-ADVANCED_NAMES = ("solver", "max_iterations", "tolerance", "seed", "min_component_area")
+ADVANCED_NAMES = ("solver", "max_iterations", "tolerance", "seed", "min_component_area",
+                  "separate_parts")
 #: Properties of the Blender side of a run.
 OPTION_NAMES = ("make_armature", "make_silhouette", "silhouette_in_render", "bind", "interactive",
                 "update_every")

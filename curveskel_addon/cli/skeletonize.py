@@ -75,6 +75,9 @@ _HELP = {
     "min_component_area": "drop connected parts with less than this share of the total area "
                           "(scan debris; their vertices follow the nearest kept part; "
                           "0 = keep all; default %(default)s)",
+    "separate_parts": "one skeleton per connected part, as the parts are modelled (by default "
+                      "parts that overlap or nearly touch are joined where they meet, and small "
+                      "free parts hang from the nearest larger part: one tree)",
 }
 
 _OUTPUT_POLICY = (

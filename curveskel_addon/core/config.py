@@ -38,10 +38,9 @@ class Weights:
 class InputConfig:
     """Cleaning the mesh (:mod:`.mesh_input`); tolerances are shares of the mesh's size."""
 
-    #: vertices on open edges closer than this are one vertex; faces thinner have no area
+    #: a length below this share of the size is zero: vertices on open edges closer are one
+    #: vertex, faces thinner have no area, a mesh within it of one plane has no volume
     merge_tolerance: float = 1e-5
-    #: a mesh within this of one plane has no volume to skeletonize
-    flat_tolerance: float = 1e-5
     #: a part is turned over only when its signed volume is clearly negative: below minus this
     #: share of the sum of the absolute per-face volumes
     orient_margin: float = 1e-3
@@ -75,19 +74,15 @@ class InitialConfig:
     #: bones shorter than this share of a spacing are contracted: two contours that close
     #: are one place, and a bone of almost no length has no direction
     contract: float = 0.5
-    #: values within this share of the largest are tied (a mirror image's distance): told
-    #: apart by the side of a plane of the shape, not by the coordinates' last bits
+    #: far below any geometric scale: values within this share of the largest are tied (a
+    #: mirror image's distance), told apart by the side of a plane of the shape, not by the
+    #: coordinates' last bits; a bone the first approximation leaves with no length gets this
+    #: share of the size (every bone has a direction)
     tie: float = 1e-6
-    #: a bone the first approximation leaves with no length gets this share of the size
-    #: (every bone has a direction)
-    nudge: float = 1e-6
     #: separate parts whose surfaces come within this share of the thinner one's radius are
     #: joined where they meet (:mod:`.initialise.parts`): a gap small against their radii is a
     #: part modelled just short of its body, not a second figure
     contact_gap: float = 0.5
-    #: a free part hangs from a larger part when it lies within this many radii of that part's
-    #: curve (an eye on a head, a button on a coat: a detail of the larger part's section)
-    float_reach: float = 2.0
 
 
 @dataclass(frozen=True)
@@ -100,10 +95,11 @@ class ObjectiveConfig:
     max_samples: int = 10_000
     #: a part's thickness is at least this share of a spacing (the fit's unit there)
     thickness_floor: float = 0.25
-    #: the cross-section a bone is centred in is the solid's within this many thicknesses of
-    #: its point: all of a round part's (its outline is about one thickness away), little of
-    #: the body a limb's root cuts across
-    section_reach: float = 2.0
+    #: a part's neighbourhood, in its thicknesses: the cross-section a bone is centred in is
+    #: the solid's within this of its point (all of a round part's, whose outline is about one
+    #: thickness away; little of the body a limb's root cuts across), and a free part within
+    #: this many radii of a larger part's curve hangs from it (an eye on a head, a button)
+    reach: float = 2.0
     #: the fit's distance to the silhouette is a soft minimum over each sample's nearest cones,
     #: this many
     soft_bones: int = 3

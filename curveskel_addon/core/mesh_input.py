@@ -336,11 +336,11 @@ def _boundary_vertices(A) -> np.ndarray:
 
 def _flat_components(V: np.ndarray, labels: np.ndarray, k: int, centre=None) -> np.ndarray:
     """(k,) bool: the components whose vertices lie in one plane (RMS distance from their plane
-    of best fit at most ``_CFG.flat_tolerance`` of their RMS radius)."""
+    of best fit at most ``_CFG.merge_tolerance`` of their RMS radius)."""
     if k == 1:
         centre = V.mean(axis=0) if centre is None else centre     # (V's mean, if at hand)
         size = float(np.sqrt(row_sumsq(V - centre).mean()))
-        return np.array([_thickness(V, centre) <= _CFG.flat_tolerance * size])
+        return np.array([_thickness(V, centre) <= _CFG.merge_tolerance * size])
     cnt = np.maximum(np.bincount(labels, minlength=k), 1).astype(np.float64)
     mean = np.stack([np.bincount(labels, weights=V[:, j], minlength=k) for j in range(3)], 1) / cnt[:, None]
     X = V - mean[labels]
@@ -349,7 +349,7 @@ def _flat_components(V: np.ndarray, labels: np.ndarray, k: int, centre=None) -> 
         for j in range(i, 3):
             C[:, i, j] = C[:, j, i] = np.bincount(labels, weights=X[:, i] * X[:, j], minlength=k) / cnt
     lam = np.linalg.eigvalsh(C)                       # ascending
-    return np.sqrt(np.maximum(lam[:, 0], 0.0)) <= _CFG.flat_tolerance * np.sqrt(np.maximum(lam.sum(axis=1), 0.0))
+    return np.sqrt(np.maximum(lam[:, 0], 0.0)) <= _CFG.merge_tolerance * np.sqrt(np.maximum(lam.sum(axis=1), 0.0))
 
 
 def _thickness(V: np.ndarray, centre=None) -> float:

@@ -80,6 +80,13 @@ def _merge_batch(k, a, b, delta, bones, n_joints, *, gain=True):
     return np.asarray(out, np.int64)
 
 
+def _lower(ev_new, ev_old):
+    """Whether a move lowers J by more than rounding (``CONFIG.initial.tie`` of J): a decision
+    on a difference in the last bits would follow the input's last bits (the summation order
+    of a cross-section, a vertex jittered by 1e-9), not the shape."""
+    return ev_new.value < ev_old.value * (1.0 - CONFIG.initial.tie)
+
+
 def _try(objective, graph, ev, make, batch, refit, singles=None):
     """Apply ``make(graph, batch)`` for the whole batch and keep it if the exact J falls (after
     ``refit`` minimisation steps; 0: the joints held). Otherwise the first few candidates are
@@ -98,7 +105,7 @@ def _try(objective, graph, ev, make, batch, refit, singles=None):
     if not len(batch):
         return None
     trial, ev_t = attempt(batch)
-    if ev_t.value < ev.value:
+    if _lower(ev_t, ev):
         return trial, ev_t, len(batch)
     if len(batch) == 1:
         return None
@@ -106,7 +113,7 @@ def _try(objective, graph, ev, make, batch, refit, singles=None):
     good, best = [], None
     for i in range(n):
         tr, et = attempt(batch[i:i + 1])
-        if et.value < ev.value:
+        if _lower(et, ev):
             good.append(i)
             if best is None or et.value < best[1].value:
                 best = (tr, et, 1)
@@ -114,7 +121,7 @@ def _try(objective, graph, ev, make, batch, refit, singles=None):
     rest = np.delete(batch, bad)
     if len(rest) > 1 and bad:
         trial, ev_t = attempt(rest)
-        if ev_t.value < ev.value and (best is None or ev_t.value < best[1].value):
+        if _lower(ev_t, ev) and (best is None or ev_t.value < best[1].value):
             return trial, ev_t, len(rest)
     return best
 
@@ -184,7 +191,7 @@ def _junctions(objective, graph, ev, refit, max_joints):
         return None
     trial, ev_t, _ = minimise(objective, best[0], evaluation=best[1], max_iterations=refit,
                               tolerance=CONFIG.search.round_tolerance)
-    if ev_t.value >= ev.value:
+    if not _lower(ev_t, ev):
         return None
     return trial, ev_t, best[2]
 

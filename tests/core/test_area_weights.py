@@ -51,9 +51,14 @@ def profile(sk):
 
 
 def body_axis_offset(sk):
-    J = sk.joints
-    J = J[(J[:, 2] > BODY[0]) & (J[:, 2] < BODY[1])]
-    return np.hypot(J[:, 0], J[:, 1])
+    """Distance from the z axis of the curve's points over the body (points along every bone:
+    a straight tube may well be one bone, with no joint in the body)."""
+    t = np.linspace(0.0, 1.0, 21)[:, None, None]
+    X = sk.joints[:, :3]
+    P = ((1 - t) * X[sk.bones[:, 0]] + t * X[sk.bones[:, 1]]).reshape(-1, 3)
+    P = P[(P[:, 2] > BODY[0]) & (P[:, 2] < BODY[1])]
+    assert len(P), "no curve over the body"
+    return np.hypot(P[:, 0], P[:, 1])
 
 
 @pytest.fixture(scope="module")

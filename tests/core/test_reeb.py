@@ -262,7 +262,7 @@ def test_zero_length_bone_is_nudged():
     _nudge_zero_bones(joints, bones, bone_reg, V, vorder, vstarts, diag, 2)
     assert np.allclose(joints[:2, :3], [[0, 0, 0], [5, 0, 0]])                # loop joints kept
     step = joints[2, :3] - [5, 0, 0]
-    assert np.linalg.norm(step) == pytest.approx(CONFIG.initial.nudge * diag)
+    assert np.linalg.norm(step) == pytest.approx(CONFIG.initial.tie * diag)
     assert step[0] > 0                                                       # towards (6, 0, 0)
     ln = np.linalg.norm(joints[bones[:, 0], :3] - joints[bones[:, 1], :3], axis=1)
     assert np.all(ln > 0)

@@ -152,3 +152,21 @@ def test_the_count_is_what_the_config_holds():
         len(v) if isinstance(v, tuple) else 1
         for g in ("input", "initial", "objective", "search")
         for v in vars(getattr(CONFIG, g)).values())
+
+
+def test_no_benchmark_mesh_is_named_in_the_core():
+    """The method's rules must hold on any mesh: no constant, comment or branch of the core
+    names one of the shared benchmark meshes (their history belongs in docs/benchmarks.md)."""
+    import re
+
+    shared = Path(__file__).resolve().parents[3] / "shared" / "meshes"
+    # ("hand" is a word too: "the hand" / "hand's" are checked as a phrase)
+    names = {p.stem.lower() for p in shared.glob("*") if p.suffix in {".off", ".obj", ".ply", ".stl"}}
+    names -= {"hand"}
+    names |= {"the hand", "hand's", "armadillo", "elephant", "fertility", "homer", "horse", "octopus", "rocker",
+              "3holes", "spot"}
+    word = re.compile(r"(?<![a-z0-9])(" + "|".join(sorted(map(re.escape, names))) + r")(?![a-z0-9])")
+    hits = [f"{p.relative_to(CORE)}:{i}: {line.strip()}"
+            for p in CORE.rglob("*.py")
+            for i, line in enumerate(p.read_text().lower().splitlines(), 1) if word.search(line)]
+    assert not hits, "core names a benchmark mesh:\n" + "\n".join(hits)

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .inside import InsideTest
 from .face_tree import FaceTree
 from .rows import row_cross
 
@@ -378,5 +379,4 @@ def _perpendicular(N):
 
 
 def _inside_of(V, F):
-    from .inside import InsideTest
     return InsideTest(V, F)

@@ -123,7 +123,7 @@ def face_samples(V, F, h: float, *, max_k: int | None = None) -> Samples:
 #: Cycles of the draw's uniform over the key's range (see :func:`canonical_subset`). A 1e-9 D
 #: move of every vertex changes the geodesic key by ~1e-7 of its range (rounding summed along
 #: the paths), so u moves by ~1e-3 and a pick flips only within that of the k-th score: about
-#: one of 3,000 medial samples (armadillo, horse), where ranks flipped 4-6 near-tied pairs.
+#: one of 3,000 samples, where ranks flipped 4-6 near-tied pairs (docs/benchmarks.md).
 #: Adjacent vertices differ by ~1e-3 of the range even on a 1M-vertex mesh: ~10 cycles apart,
 #: so the draw still looks independent from one vertex to the next.
 
@@ -140,8 +140,8 @@ def canonical_subset(key, k, seed=0, p=None):
     (``seed`` changes ``c`` and the phase), so a point's pick depends on its own key and weight
     only and changes only where its score is within rounding of the k-th. Uniforms drawn from
     a generator in key order (the previous sampler) handed two near-tied keys each other's
-    draws when their order flipped: 6 of the armadillo's 3,000 medial samples changed under a
-    1e-9 D jitter and a joint moved 2.2e-3 D. The randomness is the key's fine structure:
+    draws when their order flipped: 6 of 3,000 samples of a shared mesh changed under a
+    1e-9 D jitter and a joint moved 2.2e-3 D (docs/benchmarks.md). The randomness is the key's fine structure:
     points whose keys differ by a multiple of ``1 / c`` of the range share ``u`` (a regular
     grid of keys is drawn in a regular pattern; a mesh's geodesic distances are not a grid).
     ``rng.choice`` with probabilities walks a cumulative sum instead: one last-bit change of

@@ -4,15 +4,15 @@ Why (issue 10): f is a graph-geodesic distance over the *surface*. On a thick pa
 faces of a plate or the front and back of a ring are far apart along the surface although they
 are close through the inside, so f grows with depth along a hole's wall: its contour lines there
 run *around the hole* (their enclosing balls' centres lie in the hole, outside the shape), and
-the Reeb graph closes the cycle across the hole instead of around it (3holes, rocker-arm,
-fertility: 17, 7 and 4 first-approximation joints outside the mesh). With paths through the
+the Reeb graph closes the cycle across the hole instead of around it (17, 7 and 4
+first-approximation joints outside the mesh on three shared meshes with handles). With paths through the
 inside, f is close to the distance *through the volume*: a contour line goes round the part's
 cross-section and its centre lies on the part's centre curve, so each cycle goes round its hole.
 
 Used only for surfaces with handles whose surface-distance first approximation has joints in a
 hole (:func:`.reeb.first_approximation` keeps the result with fewer joints outside): on a shape
 without holes a distance through the volume is close to a straight-line one, whose level sets
-cut a limb that runs across them (spot's legs) in one piece with the body, so the limb would
+cut a limb that runs across them (a quadruped's legs) in one piece with the body, so the limb would
 not get its own branch; the surface distance does that well.
 
 The inside is a grid of cubes (``CONFIG.initial.interior_resolution`` along the longest principal extent), aligned with
@@ -69,7 +69,7 @@ class InteriorGrid:
             self.dims = np.ceil((hi - lo) / self.h).astype(np.int64) + 1
             # Rays a small offset off the lattice, both ways: eigh may return an axis either way
             # round, which maps the lattice onto itself but not a one-sided offset, so a
-            # rotated copy would see other rays (fertility rotated: 8.4e-3 D). Inside = both
+            # rotated copy would see other rays (a rotated genus-4 mesh: 8.4e-3 D). Inside = both
             # rays agree.
             F = np.asarray(F, np.int64)
             origin = self.mid - (self.dims - 1) / 2 * self.h

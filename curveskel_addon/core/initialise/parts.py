@@ -26,7 +26,7 @@ joined curves
     contact across a gap joins only parts not joined yet (a gap makes no loop).
 rigid children
     A group of joined parts touching no other (a free part) hangs from a larger part when all
-    of it lies within ``CONFIG.initial.float_reach`` radii of that part's curve (the radius of
+    of it lies within ``CONFIG.objective.reach`` radii of that part's curve (the radius of
     the curve where it comes nearest): an eye on a head, a button on a coat. A *rigid link*
     joins the larger part's curve, where it comes nearest, to the small part's curve, where it
     comes nearest that point. It carries no surface: the small part's vertices stay on its own
@@ -256,7 +256,7 @@ class _Curves:
 
 
 def _hang_free_parts(curves: _Curves, groups: PartGroups, samples, spart, visible, part_area):
-    """Hang every free group from a larger one when it lies within ``float_reach`` radii of
+    """Hang every free group from a larger one when it lies within ``CONFIG.objective.reach`` radii of
     that group's curve (:func:`join_parts`, rigid children). Smaller groups first; a group hangs
     only from a larger one, so no loop forms."""
     lab = groups.labels()
@@ -277,7 +277,7 @@ def _hang_free_parts(curves: _Curves, groups: PartGroups, samples, spart, visibl
             continue
         Z = curves.Z
         za, zb = Z[curves.bones[cand, 0]], Z[curves.bones[cand, 1]]     # the bones' ends
-        reach = _CFG.float_reach * np.maximum(za[:, 3], zb[:, 3])
+        reach = CONFIG.objective.reach * np.maximum(za[:, 3], zb[:, 3])
         blo = np.minimum(za[:, :3], zb[:, :3]) - reach[:, None]
         bhi = np.maximum(za[:, :3], zb[:, :3]) + reach[:, None]
         cand = cand[np.all((bhi >= col_min(pts)) & (blo <= col_max(pts)), axis=1)]
@@ -288,7 +288,7 @@ def _hang_free_parts(curves: _Curves, groups: PartGroups, samples, spart, visibl
         bone, tk = int(cand[b[k]]), float(t[k])
         i, j = curves.bones[bone]
         x = tk * Z[i] + (1.0 - tk) * Z[j]
-        if row_norm(pts - x[None, :3]).max() > _CFG.float_reach * x[3]:
+        if row_norm(pts - x[None, :3]).max() > CONFIG.objective.reach * x[3]:
             continue
         host = int(curves.part[bone])
         ja = curves.split(bone, tk)

@@ -12,7 +12,7 @@ changes, each measured:
 * **v1 is the vertex farthest from the centroid** at the default seed 0 (a random vertex for
   other seeds): the same vertex whatever the numbering, position, scale or rotation (issue 12).
   Taking the pole straight from that extreme vertex (one Dijkstra run less) was tried and not
-  kept: all of issue 10's targets on 3 meshes instead of 5 (horse inside 0.950).
+  kept: all of issue 10's targets on 3 meshes instead of 5 (docs/benchmarks.md).
 * **The farthest vertex is ill-conditioned near ties.** On a capsule every vertex of the far
   cap is almost equally far, and the graph metric's anisotropy picks one well off the tip; the
   contour lines around an off-tip pole are tilted, so the first joints lie off the axis with
@@ -30,21 +30,21 @@ changes, each measured:
   the shape itself (:func:`_chiral_frame`), which no rotation, move or scale changes.
 * **A mirror-symmetric shape grows f from the pole and its mirror image** (``mirror=True``: the
   caller's closed genus-0 components). The pole is usually a limb's tip off the mirror plane (a
-  T-posed human's foot, the elephant's hind foot); the level sets of f from it cut the body
-  slantwise, so mirror-image limbs branch off at different levels: the human's right arm left the
+  T-posed human's foot, a quadruped's hind foot); the level sets of f from it cut the body
+  slantwise, so mirror-image limbs branch off at different levels: a human's right arm left the
   spine at its shoulder while its neck and left arm split off one contour at the left shoulder
-  (the neck drawn diagonally to the head), the elephant's front legs joined the body 25 units
-  apart, spot's skeleton was 0.018 D from its own mirror image. When the shape is its own mirror
+  (the neck drawn diagonally to the head), a quadruped's front legs joined the body apart, its
+  skeleton 0.018 D from its own mirror image (docs/benchmarks.md). When the shape is its own mirror
   image across exactly one principal plane through its centroid (:func:`bilateral_plane`: the
   reflected points lie within ``mirror_tolerance`` of the shape, in units of its rms radius; bilateral
   symmetry, as of animals and characters, not a bar's or a sphere's), f is the distance
   to the nearer of the pole and its twin (the vertex nearest the pole's reflection; one Dijkstra
   run from both): its level sets are the shape's own mirror images, so paired limbs branch off at
-  one level (spot's skeleton 0.0007 D from its mirror image; the human's neck straight up from
-  a chest junction shared with both arms). Choosing one pole on the plane instead (the head's
-  top) was tried: a vertex on a dome or a bump (spot's udder) is ill-defined, and one 0.1 of the
+  one level (the quadruped's skeleton 0.0007 D from its mirror image; the human's neck straight
+  up from a chest junction shared with both arms). Choosing one pole on the plane instead (the head's
+  top) was tried: a vertex on a dome or a bump is ill-defined, and one 0.1 of the
   rms radius off the plane tilted the shoulders again. Not on shapes with handles: their cycles
-  are found from the default pole (the plate with three holes got worse with a pole on its
+  are found from the default pole (a plate with three holes got worse with a pole on its
   plane).
 """
 
@@ -203,7 +203,7 @@ def find_pole(V: np.ndarray, E: np.ndarray, lengths: np.ndarray, seed: int,
             # f: the distance to the nearer of the pole and its mirror image
             f = dijkstra(A, directed=False, indices=[pole, twin], min_only=True)[:n]
             # mirror-image vertices now have equal f, and every later choice between them
-            # would follow the last bits of the coordinates (spot moved by 1e6 of its size:
+            # would follow the last bits of the coordinates (a shared mesh moved by 1e6 of its size:
             # another skeleton, 2.8e-3 D apart): a bias across the plane, far below any
             # geometric scale, orders them the same way in any pose (issue 12)
             # (raised on the positive side only: f stays >= 0, 0 at the source on the other)
@@ -335,7 +335,7 @@ def _argmax_untied(values, P, frame) -> int:
     (:func:`_chiral_frame`) wins.
 
     Why: on a mirror-symmetric shape the farthest vertex comes as a pair of mirror images with
-    equal values, and a plain argmax then follows the last bits of the coordinates: spot with
+    equal values, and a plain argmax then follows the last bits of the coordinates: a mesh with
     every vertex moved by 1e-9 of its size started from the other side and got 35 joints
     instead of 30 (issue 12). The side of the plane separates the twins by their distance."""
     values = np.asarray(values, np.float64)

@@ -397,7 +397,7 @@ def _embed(V, diag, ct: _Contours, rb: _Reeb, kept):
 
 def _nudge_zero_bones(joints, bones, bone_reg, V, vorder, vstarts, diag, n_loop_joints):
     """Give every zero-length bone a length: move its region joint (or 2nd joint) a little."""
-    eps = _CFG.nudge * max(diag, 1e-300)
+    eps = _CFG.tie * max(diag, 1e-300)
     for _ in range(3):
         ln = np.linalg.norm(joints[bones[:, 0], :3] - joints[bones[:, 1], :3], axis=1)
         bad = np.flatnonzero(ln < 0.5 * eps)
@@ -425,8 +425,8 @@ def _single_bone(V, diag):
         axis = np.array([1.0, 0.0, 0.0])
     proj = Q @ axis
     lo, hi = float(proj.min()), float(proj.max())
-    if hi - lo < _CFG.nudge * max(diag, 1e-300):
-        h = max(_CFG.nudge * max(diag, 1e-300), 1e-12)
+    if hi - lo < _CFG.tie * max(diag, 1e-300):
+        h = max(_CFG.tie * max(diag, 1e-300), 1e-12)
         lo, hi = -h, h
     radial = np.linalg.norm(Q - proj[:, None] * axis, axis=1)
     r = float(radial.mean())
@@ -509,7 +509,7 @@ def first_approximation(V, F, *, spacing: float, seed: int, inside=None,
             outside = int(np.count_nonzero(~grid.contains(fa.joints[:, :3])))
         fa.meta["outside_joints"] = outside
         if outside:
-            # its own pole search (the surface f's pole, reused, left 3holes' first loop
+            # its own pole search (the surface f's pole, reused, left a plate's first loop
             # across its hole: inside 0.92, zig-zag 0.18)
             fb = _approximate(V, F, E, expected, spacing, seed, grid.graph(), timings, t0)
             fb.meta["outside_joints"] = int(np.count_nonzero(~grid.contains(fb.joints[:, :3])))
@@ -587,7 +587,7 @@ def _canonical_order(fa: FirstApproximation) -> FirstApproximation:
     Regions and loops are numbered by connected-component labels, which follow the vertex
     numbering; the edit stage walks chains in joint order and merges one joint at a time, so a
     permuted or rotated copy of the mesh could be edited differently (issue 12: the torus had
-    27-30 joints under rotation, scaling or a move, now 28 each time; the hand rotated moved by
+    27-30 joints under rotation, scaling or a move, now 28 each time; a rotated mesh moved by
     5.2e-4 of its size, now 2.5e-6).
     Joints are sorted by the mean f of the vertices on their bones (the lowest of their bones),
     then radius, then position (only exact ties reach it); each bone runs from its lower joint

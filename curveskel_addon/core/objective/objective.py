@@ -8,11 +8,12 @@ topology: a joint or a branch stays only where it explains the surface better th
 (minimum description length). *Smoothness* scales ``w_smooth`` and *Branch Pruning*
 ``w_branch`` (:func:`weights_for`); the other weights are the method's (:class:`..config.Weights`).
 
-sigma, each surface sample's point on the skeleton, is its nearest point on any bone: the fit
+sigma, each surface sample's point on the skeleton, is its nearest point on the nearest cones
+(a soft minimum over the few nearest, :func:`.terms.fit_term`): the fit
 then measures the distance from the surface to the silhouette, the union of the bones' round
 cones. Held to the Reeb regions instead (the paper's sigma), the balls of different parts
-overlap where the fit cannot see it and the silhouette bulges out of the surface (the horse's
-hindquarters: 2.1x CGAL's reconstruction error, 1.1x with the nearest bone); the centring and
+overlap where the fit cannot see it and the silhouette bulges out of the surface (a flat-sided
+torso: 2.1x CGAL's reconstruction error, 1.1x with the nearest bone); the centring and
 smoothness terms, not sigma, now keep a curve from wandering through the volume. The paper's E
 with its own sigma is computed for every stage all the same (``terms["E"]``).
 

@@ -9,14 +9,16 @@ sample's bone and parameter ``t``) is held fixed here: :mod:`.objective` chooses
 
 fit
     How far each surface point lies from the silhouette of its skeleton point, the paper's
-    own residual: ``(1/A) sum_s w_s h((|p_s - sigma_s| - r(sigma_s)) / L_s)``, ``h`` the
-    pseudo-Huber loss (``z^2`` within a thickness, ``2|z|`` beyond), ``w_s`` the
+    own residual: ``(1/A) sum_s w_s h(d_s / L_s)``, ``d_s`` the soft minimum (softness a
+    share of ``L_s``) over the sample's few nearest cones of ``|p_s - sigma| - r(sigma)``, so
+    the distance to the silhouette changes smoothly when another cone becomes the nearest;
+    ``h`` the pseudo-Huber loss (``z^2`` within a thickness, ``2|z|`` beyond), ``w_s`` the
     area of quadrature point ``p_s`` (:mod:`..geometry.samples`), A the surface area, ``L_s``
     the thickness of the sample's part (each part the same weight for the same relative
     error). The paper's E (eq. 8) squares the squared distances, ``(|p - sigma|^2 - r^2)^2``:
     it is computed and reported (:func:`paper_energy`), but as J's fit it weighs a flat
-    section's far side so much that the balls bulge out of its near sides (the horse's
-    hindquarters: the silhouette 0.02 D out), and in units of D a finger's errors count 10^4
+    section's far side so much that the balls bulge out of its near sides (a flat-sided
+    torso: the silhouette 0.02 D out), and in units of D a finger's errors count 10^4
     times less than a torso's ten times thicker.
 centre
     How far the points along each bone lie from the area centroids of the mesh's cross-sections
@@ -195,7 +197,7 @@ GAUSS_U = np.array([0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0)])
 def centre_term(Z, bones, mesh, D, thick, *, jacobian=True):
     """Residuals ``sqrt(l_b / (2D)) (q - c) / t_b`` at the two Gauss points ``q`` of every
     bone (3 each) and their Jacobian: ``c`` the area centroid of the solid's cross-section
-    through ``q`` across the bone within ``section_reach`` thicknesses of ``q``
+    through ``q`` across the bone within ``reach`` thicknesses of ``q``
     (:class:`..config.ObjectiveConfig`, :mod:`..geometry.disc_sections`), ``l_b`` the bone's
     length, ``t_b = thick[b]`` the thickness of its part. The disc keeps the section the
     part's own (at a limb's root the plane cuts the body too, mostly beyond it) and its centroid
@@ -224,7 +226,7 @@ def bone_centres(A, B, bones, mesh, D, thick, n_joints, *, jacobian=True):
     n = (B - A) / L[:, None]
     tb = np.asarray(thick, np.float64)[rows_of]
     Q = u[:, None] * A + (1.0 - u)[:, None] * B
-    sec = mesh.discs(Q, n, CONFIG.objective.section_reach * tb, jacobian=bool(jacobian))
+    sec = mesh.discs(Q, n, CONFIG.objective.reach * tb, jacobian=bool(jacobian))
     off = Q - sec.centroid
     sw = np.sqrt(L / (nq * D))
     res = (sw[:, None] * off / tb[:, None]).ravel()
