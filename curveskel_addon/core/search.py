@@ -62,15 +62,31 @@ class SearchLog:
         return entry
 
 
-def _merge_batch(k, a, b, delta, bones, n_joints, *, gain=True):
-    """Candidates best first (with ``gain``: only those with delta < 0), no two touching the
-    same joint, none whose two neighbours are already joined (the merge would fuse two
-    bones)."""
+def _levels(values, unit):
+    """``values`` in whole ``unit``s (rounding of J: ``CONFIG.initial.tie`` of it), so that
+    candidates whose estimates differ only in their last bits are equal, ranked by their
+    number (the joints' order follows the shape: :mod:`.initialise.reeb`), and a gain is a
+    gain only when it is more than rounding. A tie broken by the last bits would follow the
+    input's (its numbering, a jitter of 1e-9, the order a sum is taken in), and one other
+    choice early in the search leads to another skeleton."""
+    return np.round(np.asarray(values, np.float64) / max(unit, 1e-300))
+
+
+def _order(levels):
+    """Best (lowest) first; equal levels in the candidates' own order."""
+    return np.lexsort((np.arange(len(levels)), levels))
+
+
+def _merge_batch(k, a, b, delta, bones, n_joints, *, gain=True, unit=0.0):
+    """Candidates best first (with ``gain``: only those that lower J by more than rounding,
+    ``unit``), no two touching the same joint, none whose two neighbours are already joined
+    (the merge would fuse two bones)."""
     joined = {(int(x), int(y)) for x, y in np.sort(bones, axis=1)}
     used = np.zeros(n_joints, bool)
     out = []
-    for c in np.argsort(delta, kind="stable"):
-        if gain and delta[c] >= 0:
+    level = _levels(delta, unit) if unit > 0 else np.asarray(delta, np.float64)
+    for c in _order(level):
+        if gain and level[c] >= 0:
             break
         tri = [k[c], a[c], b[c]]
         if used[tri].any() or (min(a[c], b[c]), max(a[c], b[c])) in joined:
@@ -84,7 +100,12 @@ def _lower(ev_new, ev_old):
     """Whether a move lowers J by more than rounding (``CONFIG.initial.tie`` of J): a decision
     on a difference in the last bits would follow the input's last bits (the summation order
     of a cross-section, a vertex jittered by 1e-9), not the shape."""
-    return ev_new.value < ev_old.value * (1.0 - CONFIG.initial.tie)
+    return ev_new.value < ev_old.value - _unit(ev_old)
+
+
+def _unit(ev):
+    """J's rounding: the least change of J a decision may follow."""
+    return CONFIG.initial.tie * abs(ev.value)
 
 
 def _try(objective, graph, ev, make, batch, refit, singles=None):
@@ -129,7 +150,7 @@ def _try(objective, graph, ev, make, batch, refit, singles=None):
 def _merges(objective, graph, ev, refit):
     """One round of merges: (graph, ev, count) or None."""
     k, a, b, delta = merge_gains(objective, graph, ev)
-    batch = _merge_batch(k, a, b, delta, graph.bones, graph.n_joints)
+    batch = _merge_batch(k, a, b, delta, graph.bones, graph.n_joints, unit=_unit(ev))
     return _try(objective, graph, ev, lambda g, bt: merge_joints(g, k[bt]), batch, refit)
 
 
@@ -138,9 +159,9 @@ def _prunes(objective, graph, ev, refit):
     chains = [c for c in leaf_chains(graph) if c[2] >= 0]
     if not chains:
         return None
-    delta = prune_gains(objective, graph, ev, chains)
+    delta = _levels(prune_gains(objective, graph, ev, chains), _unit(ev))
     seen, batch = set(), []
-    for c in np.argsort(delta, kind="stable"):
+    for c in _order(delta):
         if delta[c] < 0 and chains[c][2] not in seen:
             seen.add(chains[c][2])
             batch.append(int(c))
@@ -157,9 +178,9 @@ def _splits(objective, graph, ev, refit, max_joints):
     room = (max_joints - graph.n_joints) if max_joints else len(graph.bones)
     if room <= 0:
         return None
-    share = objective.per_bone(graph, ev)
-    order = np.argsort(-share, kind="stable")
-    batch = order[share[order] > objective.weights.joint][:min(room, CONFIG.search.singles)]
+    share = _levels(objective.per_bone(graph, ev) - objective.weights.joint, _unit(ev))
+    order = _order(-share)
+    batch = order[share[order] > 0][:min(room, CONFIG.search.singles)]
     # no estimate ranks the bones better than their share: the batch, else the worst alone
     return _try(objective, graph, ev, lambda g, bt: split_bones(g, bt), batch, refit, singles=1)
 
@@ -207,7 +228,8 @@ def budget(objective, graph, max_joints):
         ev = objective.evaluate(graph)
         excess = graph.n_joints - max_joints
         k, a, b, delta = merge_gains(objective, graph, ev)
-        batch = _merge_batch(k, a, b, delta, graph.bones, graph.n_joints, gain=False)[:excess]
+        batch = _merge_batch(k, a, b, delta, graph.bones, graph.n_joints, gain=False,
+                             unit=_unit(ev))[:excess]
         if len(batch):
             graph, _ = merge_joints(graph, k[batch])
             continue

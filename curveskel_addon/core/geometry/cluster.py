@@ -1,6 +1,6 @@
 """A coarser copy of a closed mesh by vertex clustering, for work that needs only a resolution.
 
-The vertices in each cube of a grid of side ``h`` become one, at their mean; faces with two
+The vertices in each cube of a grid of side ``h`` (in the vertices' principal axes) become one, at their mean; faces with two
 corners in one cube vanish, and pairs of faces that now lie on each other facing opposite ways
 cancel. What is left is still a closed, oriented surface in the sense the cross-sections and the
 inside test use (every edge is crossed as often one way as the other): the signed area of a plane
@@ -42,7 +42,14 @@ def cluster_vertices(V, F, h: float):
     V = np.asarray(V, np.float64)
     F = np.asarray(F, np.int64).reshape(-1, 3)
     used = np.unique(F)
-    key = np.floor((V[used] - V[used].min(axis=0)) / h).astype(np.int64)
+    # the grid in the vertices' principal axes, symmetric about the middle of their box: a
+    # rotated, moved or scaled copy of the mesh gets the same cubes (an axis the other way
+    # round maps the grid onto itself)
+    Y = V[used] - V[used].mean(axis=0)
+    _, E = np.linalg.eigh(Y.T @ Y)
+    Y = Y @ E
+    mid = 0.5 * (Y.min(axis=0) + Y.max(axis=0))
+    key = np.floor((Y - mid) / h).astype(np.int64)
     _, cell = np.unique(key, axis=0, return_inverse=True)
     cell = cell.ravel()
     n2 = int(cell.max()) + 1 if len(cell) else 0

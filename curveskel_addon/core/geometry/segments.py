@@ -320,17 +320,23 @@ def nearest_on_silhouette(points, joints, bones, k: int = 1):
     kk = min(int(k), nb)
     bone = np.zeros((n, kk), np.int64)
     step = max(1, _NUM.block // nb)
+    # Values within a tie (a share of the points' extent) are equal, and equal values rank by
+    # bone number: a point beyond a joint is exactly as far from both of the joint's bones, and
+    # the last bits of the products (which depend on the point's place in the block, the
+    # mesh's numbering) would choose otherwise.
+    quantum = CONFIG.initial.tie * max(float(np.linalg.norm(col_max(P) - col_min(P))), 1e-300)
     for s in range(0, n, step):
         p = Pc[s:s + step]
         d2 = _screen(p @ Dt, p @ At, AD, AA, inv, DD)
         d2 += np.einsum("ij,ij->i", p, p)[:, None]
         t = np.clip((p @ Dt - AD) * inv, 0.0, 1.0)
-        value = np.sqrt(np.maximum(d2, 0.0)) - (rj + t * (ri - rj))
+        value = np.round((np.sqrt(np.maximum(d2, 0.0)) - (rj + t * (ri - rj))) / quantum)
         if kk == 1:
             bone[s:s + step, 0] = np.argmin(value, axis=1)
             continue
         part = np.argpartition(value, kk - 1, axis=1)[:, :kk] if kk < nb else \
             np.broadcast_to(np.arange(nb), value.shape).copy()
+        part = np.sort(part, axis=1)
         rows = np.arange(len(p))[:, None]
         order = np.argsort(value[rows, part], axis=1, kind="stable")
         bone[s:s + step] = part[rows, order]
