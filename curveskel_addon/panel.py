@@ -189,6 +189,8 @@ def _menu_entry(self, context):
     self.layout.operator("curveskel.generate", icon='ARMATURE_DATA')
     self.layout.operator_menu_enum("curveskel.bind", "method", text="CurveSkel: Bind Mesh",
                                    icon='MOD_ARMATURE')
+    self.layout.operator("curveskel.evaluate", text="CurveSkel: Evaluate Skeleton", icon='VIEWZOOM')
+    self.layout.operator("curveskel.refine", text="CurveSkel: Refine Skeleton", icon='MOD_ARMATURE')
 
 
 MENU_ENTRIES = ((bpy.types.VIEW3D_MT_object, _menu_entry),)

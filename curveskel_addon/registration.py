@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import bpy
 
-from . import ops_bind, ops_generate, panel, preferences, properties, results
+from . import ops_bind, ops_evaluate, ops_generate, panel, preferences, properties, results
 
 __all__ = ["CLASSES", "register", "unregister"]
 
@@ -17,6 +17,7 @@ CLASSES = (
     *ops_generate.CLASSES,
     *ops_bind.CLASSES,
     *panel.CLASSES,
+    *ops_evaluate.CLASSES,      # its panel is a child of panel's main one: registered after it
 )
 
 
@@ -25,7 +26,8 @@ def _type_properties():
     return ((bpy.types.Scene, "curveskel",
              bpy.props.PointerProperty(type=properties.CurveSkelSceneSettings,
                                        name="CurveSkel", description="CurveSkel sidebar settings")),
-            *results.pointer_properties())
+            *results.pointer_properties(),
+            *ops_evaluate.type_properties())
 
 
 def register() -> None:

@@ -8,6 +8,7 @@ Usage (from the repository root, with the project's venv):
                                                       # (+ issue 10's shape measures, skeletons.png)
     .venv/bin/python scripts/bench.py --figures       # only docs/figures/skeletons.png
     .venv/bin/python scripts/bench.py --batch         # batch throughput: 1 and 2 workers, Dask
+    .venv/bin/python scripts/bench.py --evaluate      # evaluate / refine outside skeletons (issue 33)
 
 Each measurement runs in a fresh subprocess (one per mesh, or per mesh and method), so the peak
 resident memory (``ru_maxrss``) is that run's own and a crash or timeout of one peer does not stop
@@ -371,6 +372,73 @@ def worker_skeleton(spec: str) -> dict:
     return {"mesh": spec, "seconds": sec, "path": str(path), **shape_of(V, F, joints, bones, spec)}
 
 
+#: Issue 33's cases: (mesh, subdivisions, skeleton). The mesh is refined by midpoint subdivision
+#: (its shape unchanged) to about 100k vertices; the skeleton is in the mesh's space.
+EVALUATE_CASES = {
+    "human-110k+metarig": ("human", 2, "metarig"),
+    "hand-76k+cgal": ("hand", 2, "cgal"),
+    "human+metarig": ("human", 0, "metarig"),
+    "hand+cgal": ("hand", 0, "cgal"),
+}
+#: Issue 33's targets on a ~100k-vertex mesh, seconds.
+EVALUATE_TARGETS = {"evaluate_s": 1.0, "refine_s": 3.0}
+
+
+def _evaluate_case(case: str):
+    """(V, F, skeleton) of one of :data:`EVALUATE_CASES`."""
+    import numpy as np
+    import trimesh
+
+    from curveskel_addon.core import load_outside_skeleton
+    from curveskel_addon.mesh_files import read_mesh
+    from curveskel_addon.rig.armature_segments import armature_segments
+    from tests.outside_skeletons import blender_to_obj, load_metarig, obj_to_blender, place_metarig
+
+    name, levels, kind = EVALUATE_CASES[case]
+    if name == "human":
+        V, F = read_mesh(ROOT / "tests" / "data" / "heldout" / "human.obj")
+    else:
+        V, F = read_mesh(next(SHARED.glob(f"{name}.*")))
+    for _ in range(levels):
+        V, F = trimesh.remesh.subdivide(V, F)
+    if kind == "cgal":
+        return np.asarray(V), np.asarray(F), load_outside_skeleton(REFERENCE / f"{name}.json")
+    names, parent, connected, H, T = load_metarig()
+    scale, offset, H, T = place_metarig(names, parent, H, T, obj_to_blender(V))
+    seg = armature_segments(blender_to_obj(scale * H + offset), blender_to_obj(scale * T + offset),
+                            parent, connected)
+    return np.asarray(V), np.asarray(F), (seg.joints, seg.segments)
+
+
+def worker_evaluate(case: str, repeat: int = 1) -> dict:
+    """Issue 33: ``evaluate`` (the core's report), the full report (+ reconstruction distances)
+    and ``refine`` (graph kept) of one case, each the fastest of ``repeat`` runs (wall and CPU
+    seconds of that run)."""
+    from curveskel_addon.core import evaluate, refine
+    from curveskel_addon.measure.evaluation import full_report
+
+    V, F, sk = _evaluate_case(case)
+
+    def fastest(fn):
+        best = None
+        for _ in range(max(repeat, 1)):
+            t0, c0 = time.perf_counter(), time.process_time()
+            out = fn()
+            run = (time.perf_counter() - t0, time.process_time() - c0, out)
+            best = run if best is None or run[0] < best[0] else best
+        return best
+
+    t_ev, c_ev, rep = fastest(lambda: evaluate(V, F, sk))
+    t_full, c_full, _ = fastest(lambda: full_report(V, F, evaluate(V, F, sk)))
+    t_ref, c_ref, res = fastest(lambda: refine(V, F, sk))
+    return {"case": case, "V": int(len(V)), "F": int(len(F)), "joints": int(len(rep.joints)),
+            "bones": int(len(rep.bones)), "evaluate_s": t_ev, "evaluate_cpu_s": c_ev,
+            "evaluate_stages": rep.seconds, "full_report_s": t_full, "full_report_cpu_s": c_full,
+            "refine_s": t_ref, "refine_cpu_s": c_ref, "iterations": res.iterations,
+            "J_before": res.before.J, "J_after": res.after.J,
+            "inside_before": res.before.inside_fraction, "inside_after": res.after.inside_fraction}
+
+
 # ---------------------------------------------------------------------------------------------
 # parent: run workers, tabulate, write
 # ---------------------------------------------------------------------------------------------
@@ -553,6 +621,64 @@ a ~100k-vertex mesh ≤ 25× one Dijkstra over its edge graph; 1M < 10 s and < 2
             body += f"\n![seconds per stage]({Path(fig).relative_to('docs')})\n"
         write_section("speed", body)
         print(f"\nwrote {DOC.relative_to(ROOT)} (speed) and .bench/speed.json")
+
+
+# -- evaluate and refine (issue 33) ----------------------------------------------------------------
+def run_evaluate(args) -> None:
+    cases = args.meshes or list(EVALUATE_CASES)
+    results = []
+    for case in cases:
+        print(f"[evaluate] {case} ...", end=" ", flush=True)
+        r = spawn(["evaluate", case, str(args.repeat)], args.timeout)
+        r.setdefault("case", case)
+        results.append(r)
+        print(f"evaluate {r['evaluate_s']:.2f} s, refine {r['refine_s']:.2f} s"
+              if "error" not in r else r["error"], flush=True)
+    if not args.no_write:
+        OUT.mkdir(exist_ok=True)
+        (OUT / "evaluate.json").write_text(json.dumps({"env": env_line(), "results": results}, indent=1))
+    T = EVALUATE_TARGETS
+    rows = []
+    for r in results:
+        if "error" in r:
+            rows.append([r["case"], r["error"]] + [""] * 9)
+            continue
+        big = r["V"] >= 50_000
+        mark = lambda key: (" " + ("(yes)" if r[key] < T[key] else "(**no**)")) if big else ""  # noqa: E731
+        rows.append([r["case"], f"{r['V']:,}", f"{r['joints']}/{r['bones']}",
+                     f"{r['evaluate_s']:.2f} / {r['evaluate_cpu_s']:.2f}{mark('evaluate_s')}",
+                     f"{r['full_report_s']:.2f}",
+                     f"{r['refine_s']:.2f} / {r['refine_cpu_s']:.2f}{mark('refine_s')}",
+                     r["iterations"], f"{r['J_before']:.4g} → {r['J_after']:.4g}",
+                     f"{r['inside_before']:.3f} → {r['inside_after']:.3f}"])
+    header = ["case", "V", "joints/bones", "evaluate s (wall / CPU)", "full report s",
+              "refine s (wall / CPU)", "iterations", "J", "inside"]
+    table = md_table(header, rows)
+    cmd = "python scripts/bench.py --evaluate" + (" --meshes " + " ".join(args.meshes) if args.meshes else "") \
+        + (f" --repeat {args.repeat}" if args.repeat != 3 else "")
+    body = f"""## Evaluate and refine an outside skeleton (issue 33)
+
+Command: `.venv/bin/{cmd}` — {env_line()}.
+
+One fresh subprocess per case; each figure the fastest of {args.repeat} runs there, wall-clock
+and CPU seconds of that run (CPU time is what the machine's other load lengthens least; the
+core runs mostly on one thread). *evaluate*: `core.evaluate(V, F, skeleton)` from arrays in memory: the
+mesh cleaned, J's samples, the radii fitted (the metarig has none; CGAL's given radii are used),
+J, E, per bone, per vertex. *full report*: the same plus the reconstruction distances both ways
+(`measure.evaluation.full_report`, 10,000 samples each way). *refine*: `core.refine(V, F,
+skeleton)`, the graph kept, to the final tolerance or `max_iterations` (30). The ~100k meshes
+are `tests/data/heldout/human.obj` and `../shared/meshes/hand.off` refined twice by midpoint
+subdivision (the same surface, 16× the triangles); the metarig is Rigify's Basic Human
+(`tests/data/rigify_basic_human.json`) placed on the human by `tests/outside_skeletons.py`, CGAL's is the
+reference curve skeleton in `../shared/reference`. Targets on ~100k vertices: evaluate < {T['evaluate_s']:g} s,
+refine < {T['refine_s']:g} s (marked).
+
+{table}
+"""
+    print("\n" + table)
+    if not args.no_write:
+        write_section("evaluate", body)
+        print(f"\nwrote {DOC.relative_to(ROOT)} (evaluate) and .bench/evaluate.json")
 
 
 # -- quality ----------------------------------------------------------------------------------
@@ -1429,6 +1555,9 @@ def main(argv=None) -> None:
                          "single-file command line")
     ap.add_argument("--no-library", action="store_true",
                     help="--batch: throughput only, not the 60-mesh folder")
+    ap.add_argument("--evaluate", action="store_true",
+                    help="evaluate and refine outside skeletons on ~100k-vertex meshes (issue 33); "
+                         f"--meshes picks cases ({', '.join(EVALUATE_CASES)})")
     ap.add_argument("--figures", action="store_true",
                     help="only docs/figures/skeletons.png: default skeleton of each shared mesh "
                          "over its reference (also drawn by --quality)")
@@ -1453,6 +1582,8 @@ def main(argv=None) -> None:
             res = worker_dijkstra(rest[0], int(rest[1]) if len(rest) > 1 else 1)
         elif kind == "skeleton":
             res = worker_skeleton(rest[0])
+        elif kind == "evaluate":
+            res = worker_evaluate(rest[0], int(rest[1]) if len(rest) > 1 else 1)
         else:
             res = worker_quality(rest[0], rest[1], int(rest[2]), int(rest[3]) if len(rest) > 3 else 1)
         print(json.dumps(res, default=lambda o: o.item() if hasattr(o, "item") else str(o)))
@@ -1461,6 +1592,8 @@ def main(argv=None) -> None:
         run_quality(args)
     elif args.command:
         run_command(args)
+    elif args.evaluate:
+        run_evaluate(args)
     elif args.figures:
         run_figures(args)
     elif args.batch:

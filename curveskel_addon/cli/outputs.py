@@ -37,7 +37,7 @@ __all__ = ["Output", "check_outputs", "temp_path", "commit", "remove_temps", "in
 #: temporary files of this run still on disk (removed on any failure or interrupt)
 _TEMPS: set[Path] = set()
 #: the output options, in the order they are written
-OUTPUT_FLAGS = ("json", "glb", "fbx", "blend", "render")
+OUTPUT_FLAGS = ("json", "glb", "fbx", "blend", "render", "report")
 _SUFFIX_NEEDED = {"glb": ".glb", "fbx": ".fbx"}
 _KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
           (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),

@@ -2,6 +2,9 @@
 
     curveskel skeletonize MESH [--json OUT.json] [--blend OUT.blend] [--render OUT.png]
                                [--bind --glb OUT.glb | --fbx OUT.fbx] [method options]
+    curveskel skeletonize MESH --evaluate SKEL.json [--report OUT.json]
+    curveskel skeletonize MESH --refine SKEL.json [--json OUT.json] [--report OUT.json]
+    curveskel skeletonize MESH --compare A.json B.json [--report OUT.json]
 
 Reads .obj .ply .stl .off, runs the curveskel core, writes the outputs asked for, then prints
 vertices, components, joints, bones, J (first -> returned) with its terms, the search's stages,
@@ -35,6 +38,7 @@ from ..measure.quality import quality
 from ..mesh_files import read_mesh
 from ..run_summary import energy_text, moves_text, summary, terms_text
 from .outputs import Output, check_outputs, commit, kept, remove_temps, temp_path
+from . import evaluation
 from .progress import Progress
 
 __all__ = ["build_parser", "main", "run", "params_from_args", "print_summary"]
@@ -135,6 +139,7 @@ def build_parser(prog: str = "curveskel skeletonize") -> argparse.ArgumentParser
     b.add_argument("--blend-backup", action="store_true",
                    help="keep the .blend being replaced as OUT.blend1 (Blender's backup); "
                         "by default no backup file is left")
+    evaluation.add_arguments(ap)
     g_art = ap.add_argument_group("skeleton settings (the Blender panel's)")
     g_adv = ap.add_argument_group("advanced method parameters (the Blender panel's Advanced)")
     defaults = SkeletonParams()
@@ -250,6 +255,7 @@ def run(args, report=None, progress=None) -> int:
     -------
     int : the exit status (0).
     """
+    evaluation.check(args)
     if args.bind and not any(getattr(args, f) for f in _BIND_OUTPUTS):
         raise CurveSkelError("--bind needs an output that takes the bound rig: --glb OUT.glb, "
                              "--fbx OUT.fbx or --blend OUT.blend (nothing would be written)")
@@ -257,6 +263,10 @@ def run(args, report=None, progress=None) -> int:
     params = params_from_args(args)
     report = io.StringIO() if report is None else report
     progress = Progress(enabled=not args.quiet) if progress is None else progress
+    if evaluation.requested(args):       # an outside skeleton judged by J (issue 33)
+        rc = evaluation.run(args, outs, params, report, progress)
+        progress.close()
+        return rc
     t0 = time.perf_counter()
     progress("read", 0.0)
     V, F = read_mesh(args.mesh)

@@ -23,6 +23,10 @@ Never imports bpy. Arrays in, a :class:`Skeleton` out. The package follows the m
 ``pipeline``                :func:`skeletonize`, :class:`SkeletonRun`: the stages in order
 ``config``, ``params``      every constant of the method; the user's settings
 ``skeleton``, ``errors``    the result and its JSON; the one exception type
+``skeleton_input``,         any skeleton from outside (CGAL's, an armature, a plain JSON):
+``evaluation``,             checked, judged by J (terms, E, per bone, per vertex), its joints
+``refinement``              moved to J's minimum with its graph kept (:func:`evaluate`,
+                            :func:`refine`)
 ==========================  ==================================================================
 
 The measures (``curveskel_addon.measure``) and the rig (``curveskel_addon.rig``) sit outside:
@@ -30,9 +34,13 @@ they import the core, the core never imports them.
 """
 
 from .errors import CurveSkelError
+from .evaluation import SkeletonReport, compare, evaluate
 from .params import SOLVERS, SkeletonParams
 from .pipeline import RunState, SkeletonRun, skeletonize
+from .refinement import Refinement, RefineResult, refine
 from .skeleton import FORMAT, Skeleton
+from .skeleton_input import OutsideSkeleton, load_outside_skeleton
 
 __all__ = ["CurveSkelError", "SOLVERS", "SkeletonParams", "SkeletonRun", "RunState",
-           "skeletonize", "Skeleton", "FORMAT"]
+           "skeletonize", "Skeleton", "FORMAT", "evaluate", "compare", "refine", "Refinement",
+           "RefineResult", "SkeletonReport", "OutsideSkeleton", "load_outside_skeleton"]

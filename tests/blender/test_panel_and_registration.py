@@ -50,7 +50,13 @@ def test_class_names_and_panel_location():
     pt = bpy.types.CURVESKEL_PT_main
     assert (pt.bl_space_type, pt.bl_region_type, pt.bl_category) == ('VIEW_3D', 'UI', "CurveSkel")
     assert all(n.startswith(("CURVESKEL_OT_", "CURVESKEL_PT_", "CURVESKEL_AddonPreferences",
-                             "CurveSkelSceneSettings")) for n in CLASS_NAMES)
+                             "CurveSkelSceneSettings", "CurveSkelEvaluateSettings"))
+               for n in CLASS_NAMES)
+    for name in ("CURVESKEL_OT_evaluate", "CURVESKEL_OT_refine"):
+        op = getattr(bpy.types, name)
+        assert {'REGISTER', 'UNDO'} <= set(op.bl_options)
+    assert bpy.types.CURVESKEL_PT_evaluate.bl_parent_id == "CURVESKEL_PT_main"
+    assert hasattr(bpy.types.Scene, "curveskel_evaluate")
 
 
 def test_poll_message_says_why():

@@ -411,8 +411,9 @@ CLI_REFUSALS = {
     "--containment nan (no longer a parameter)": (lambda m, d: ["--containment", "nan"],
                                                   "unrecognized arguments: --containment"),
     "--smoothness -1": (lambda m, d: ["--smoothness", "-1"], "smoothness must be >= 0"),
-    "--refine -1 (no longer a parameter)": (lambda m, d: ["--refine", "-1"],
-                                            "unrecognized arguments: --refine"),
+    # --refine is no longer a method parameter but issue 33's SKEL.json: a file not there
+    "--refine -1 (a skeleton file that is not there)": (lambda m, d: ["--refine", "-1"],
+                                                        "cannot read skeleton -1"),
     "--seed -1": (lambda m, d: ["--seed", "-1"], "seed must be >= 0"),
     "--max-joints -5": (lambda m, d: ["--max-joints", "-5"], "max_joints must be >= 0"),
     "--tolerance inf": (lambda m, d: ["--tolerance", "inf"], "tolerance must be a finite number"),
