@@ -116,8 +116,14 @@ class SkeletonRun:
         self.timings["initialise"] = time.perf_counter() - t0
         self.log = SearchLog()
         if paper:
-            self._steps = self._paper_steps()
             self.graph = self.init.graph
+            if p.max_joints and self.graph.n_joints > p.max_joints:
+                # the budget binds the paper's method too: cut by J's estimates, as below
+                obj = Objective.for_first_approximation(self.mesh, samples, sreg, self.graph,
+                                                        weights_for(p), p.spacing)
+                g0 = self.graph.with_thickness(obj.measure_thickness(self.graph))
+                self.graph = budget(obj, g0, p.max_joints)
+            self._steps = self._paper_steps()
             return
         if len(samples.points) > cfg.max_samples:
             fs = np.einsum("ij,ij->i", samples.bary, self.init.key[self.mesh.F[samples.face]])
@@ -176,10 +182,17 @@ class SkeletonRun:
         p = self.params
         init = self.init
         V = self.mesh.V
-        for stage, joints, bone, t, E, it in paper_fit(V, init.graph, init.vertex_bone, init.vertex_t,
+        g = self.graph
+        bone, t = init.vertex_bone, init.vertex_t
+        if g is not init.graph:
+            # the budget merged joints: each vertex on the bones of its own Reeb region, again
+            n_reg = int(max(init.vertex_region.max(initial=-1), g.pairs[:, 0].max(initial=-1))) + 1
+            cand = candidates_from_pairs(g.pairs, init.vertex_region, n_reg)
+            bone, t, _ = closest_on_bones(V, g.joints, g.bones, cand)
+        for stage, joints, bone, t, E, it in paper_fit(V, g, bone, t,
                                                        max_iterations=p.max_iterations,
                                                        tolerance=p.tolerance):
-            graph = init.graph.with_joints(joints)
+            graph = g.with_joints(joints)
             self._paper_mapping = (bone, t)
             entry = self.log.add_value(stage, graph, E, {"E": E}, iterations=it)
             yield graph, entry

@@ -103,8 +103,14 @@ def test_each_limb_hangs_from_the_torso_at_the_contact(six_part, limb):
     tip = int(np.flatnonzero(on_limb)[np.argmax(along[on_limb])])
     path = _path_to_root(sk, root, tip)
     in_torso = _inside_capsule(X[path], torso)
-    k = int(np.argmax(in_torso))                       # the first joint of the path in the torso
-    assert in_torso[k]
+    # the joint the limb hangs from: the first junction on the way from the tip to the root
+    # (where the limb's branch leaves the body's curve); joints between it and the limb lie in
+    # the torso (a clavicle's: J may give the branch a joint where it enters the limb)
+    degree = np.bincount(sk.bones.ravel(), minlength=sk.n_joints)
+    k = int(np.argmax(degree[path] >= 3))
+    assert degree[path[k]] >= 3 and in_torso[k]
+    j0 = int(np.argmax(in_torso))                      # the first joint of the path in the torso
+    assert np.all(in_torso[j0:k + 1]), "the branch leaves the torso between its junction and the limb"
     hang = X[path[k]]
     # on the torso's axis (within a quarter of its radius) ...
     assert np.linalg.norm(hang[:2] - ta[:2]) < 0.25 * tr, hang
@@ -115,7 +121,7 @@ def test_each_limb_hangs_from_the_torso_at_the_contact(six_part, limb):
     else:
         assert ta[2] - tr <= hang[2] <= la[2] + lr, hang
     # every joint from the tip to there lies in the limb, the tip at the limb's far end
-    limb_joints = X[path[:k]]
+    limb_joints = X[path[:j0]]
     assert np.all(_inside_capsule(limb_joints, meshes.SIX_PART[limb], 1e-6))
     tip_end = lb + lr * (lb - la) / np.linalg.norm(lb - la)
     assert np.linalg.norm(X[tip] - tip_end) < lr
@@ -123,7 +129,8 @@ def test_each_limb_hangs_from_the_torso_at_the_contact(six_part, limb):
     # limb within the limb's diameter of where the limb's axis leaves the torso (the seam)
     axis = la + np.linspace(0.0, 1.0, 2001)[:, None] * (lb - la)
     exit_point = axis[np.argmax(~_inside_capsule(axis, torso))]
-    bone = hang + np.linspace(0.0, 1.0, 2001)[:, None] * (limb_joints[-1] - hang)
+    last = X[path[j0]]                                 # the branch's last joint in the torso
+    bone = last + np.linspace(0.0, 1.0, 2001)[:, None] * (limb_joints[-1] - last)
     in_limb = _inside_capsule(bone, meshes.SIX_PART[limb]) & ~_inside_capsule(bone, torso)
     entry = bone[np.argmax(in_limb)]
     assert np.linalg.norm(entry - exit_point) < 2 * lr, (limb, entry, exit_point)

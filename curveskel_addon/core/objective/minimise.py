@@ -2,7 +2,7 @@
 
 Levenberg-Marquardt on J's Gauss-Newton model (:meth:`.objective.Objective.model`) with sigma
 held during a step; a step is kept only when the *exact* J (sigma mapped again) falls, so J
-never rises. Marquardt's scaled damping, Nielsen-style adaptation. It stops when a kept step
+never rises. Marquardt's scaled damping (rotation-invariant: :func:`_damping_scale`), Nielsen's adaptation. It stops when a kept step
 lowers J by less than ``tolerance`` of J, or when no damping gives a decrease. Negative radii
 are flipped (r enters J squared, as in the paper).
 
@@ -53,7 +53,7 @@ def minimise(objective, graph, *, max_iterations, tolerance, fixed=None,
     for it in range(1, max_iterations + 1):
         H, g = objective.model(graph, ev.sigma)
         Hf, gf = H[free][:, free], g[free]
-        dg = Hf.diagonal().copy()
+        dg = _damping_scale(H)[free]
         dg = np.maximum(dg, 1e-12 * max(float(dg.max(initial=0.0)), 1e-300))
         kept = False
         for _ in range(20):
@@ -82,6 +82,16 @@ def minimise(objective, graph, *, max_iterations, tolerance, fixed=None,
         if drop < tolerance * ev.value:
             break
     return graph, ev, it
+
+
+def _damping_scale(H):
+    """Marquardt's scale of the damping, the same in any orientation of the axes: a joint's
+    three position entries share the mean of their diagonal entries (the trace of the block
+    turns with the mesh; each entry alone does not, and a rotated mesh would take other steps),
+    its radius keeps its own."""
+    d = np.asarray(H.diagonal(), np.float64).reshape(-1, 4).copy()
+    d[:, :3] = d[:, :3].mean(axis=1, keepdims=True)
+    return d.ravel()
 
 
 def _moved(graph, free, step):
