@@ -71,10 +71,32 @@ def check_bound(ob, arm):
 # -- the armature as edited ------------------------------------------------------------------------
 def test_moved_joint_moves_the_weights():
     V, sk, ob, arm, _ = rigged("star")
-    # two connected bones along the +x arm (the longest such pair)
-    along = [b for b in arm.data.bones if b.parent is not None and b.use_connect
-             and b.parent.head_local.x > 0.3 and abs(b.head_local.y) < 0.3
-             and b.tail_local.x > b.head_local.x > b.parent.head_local.x]
+
+    def pairs_along():
+        return [b for b in arm.data.bones if b.parent is not None and b.use_connect
+                and b.parent.head_local.x > 0.3 and abs(b.head_local.y) < 0.3
+                and b.tail_local.x > b.head_local.x > b.parent.head_local.x]
+
+    # two connected bones along the +x arm (the longest such pair); a straight arm may be one
+    # long bone (J prices every joint): the rigger subdivides it first, in three
+    if max((min(b.length, b.parent.length) for b in pairs_along()), default=0.0) < 0.8:
+        whole = max((b for b in arm.data.bones if b.tail_local.x > 0.3 and abs(b.tail_local.y) < 0.3
+                     and b.tail_local.x > b.head_local.x), key=lambda b: b.length)
+        with edit_bones(arm) as ebs:
+            eb = ebs[whole.name]
+            head, tail = eb.head.copy(), eb.tail.copy()
+            cuts = [head.lerp(tail, 1 / 3), head.lerp(tail, 2 / 3), tail]
+            children = list(eb.children)
+            eb.tail, last = cuts[0], eb                 # in three: the outer two are the pair
+            for n, end in enumerate(cuts[1:], 1):
+                part = ebs.new(f"{eb.name}_sub{n}")
+                part.head, part.tail, part.roll = last.tail.copy(), end, eb.roll
+                part.parent, part.use_connect, part.use_deform = last, True, eb.use_deform
+                last = part
+            for c in children:
+                c.parent = last
+        bind_mesh(ob, arm)
+    along = pairs_along()
     leaf = max(along, key=lambda b: min(b.length, b.parent.length))
     parent = leaf.parent
     lo, hi = float(parent.head_local.x), float(leaf.tail_local.x)

@@ -169,16 +169,7 @@ def test_rest_pose_is_the_input(name):
     assert np.abs(evaluated(ob) - V).max() < 1e-5
 
 
-#: The core's skeleton of the L folds over its vertical arm (one chain runs down it, back up and
-#: down again: joints at z 5.28, 3.91, 0.90, 4.15, 3.68, 1.02, ...; 8 fold pairs) and ends in
-#: a zero-length bone: a bone of that chain posed in Blender is off its rigid rotation by
-#: 2e-4 (its matrix_local's translation is 4e-4 off its head in float32). A core bug,
-#: reported; strict, so the test says when the core's skeleton is sane again.
-_FOLDED_L = pytest.mark.xfail(strict=True, reason="core: the skeleton of bent_capsule folds "
-                              "over its vertical arm (fold_pairs 8) and has a zero-length tip bone")
-
-
-@pytest.mark.parametrize("name", [pytest.param("bent_capsule", marks=_FOLDED_L), "star"])
+@pytest.mark.parametrize("name", ["bent_capsule", "star"])
 def test_posing_moves_one_arm_only(name):
     V, sk, ob, arm, fig = rigged(name)
     diag = float(np.linalg.norm(np.ptp(V, axis=0)))
