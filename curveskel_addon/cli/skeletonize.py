@@ -183,11 +183,14 @@ def print_summary(path, V, sk, seconds: float, out=sys.stdout) -> None:
     if repaired:
         print("repaired    " + ", ".join(f"{_REPAIRS[k]}: {v}" for k, v in repaired.items()), file=out)
     if info.get("small_components_dropped"):
-        print(f"dropped     {info['small_components_dropped']} small part(s) under "
-              f"{100 * info['min_component_area']:g} % of the area each "
+        if info.get("min_component_area"):
+            rule = f"under {100 * info['min_component_area']:g} % of the area each"
+        else:
+            rule = "smaller than the Detail Size against their nearest neighbour"
+        print(f"dropped     {info['small_components_dropped']} small part(s) {rule} "
               f"({100 * info['small_components_area_share']:.2g} % in all, "
-              f"{info['small_components_vertices']} vertices, mapped to the nearest kept part); "
-              "--min-component-area 0 keeps them", file=out)
+              f"{info['small_components_vertices']} vertices, mapped to the nearest kept part)",
+              file=out)
     print(f"skeleton    {s['joints']} joints, {s['bones']} bones", file=out)
     if s["solver"] == "paper":
         print(f"objective   E {s['J0']:.6g} -> {s['J']:.6g} in {s['iterations']} iterations "

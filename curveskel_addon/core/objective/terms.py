@@ -155,7 +155,9 @@ def fit_term(Z, samples, bones, bone, area, scale, *, softness=0.0, jacobian=Tru
     if k > 1:
         tau = (softness * sc)[:, None]
         m = v.min(axis=1, keepdims=True)
-        e = np.exp(-(v - m) / tau)
+        with np.errstate(under="ignore"):          # a far cone's weight is 0
+            e = np.exp(-(v - m) / tau)
+        e[e < 1e-200] = 0.0                         # (and no subnormal products below)
         W = e.sum(axis=1, keepdims=True)
         soft = (m - tau * np.log(W))[:, 0]
         share = e / W                                           # d soft / d v_k
