@@ -652,8 +652,7 @@ def clean_mesh(V, F, *, min_component_area: float = 0.0, detail: float = 0.0) ->
     if holes:
         info["holes_capped"] = int(holes)
         info["cap_area_share"] = cap_area / max(float(carea[~drop].sum()), 1e-300)
-    if min_component_area > 0:
-        info["min_component_area"] = min_component_area
+    info["min_component_area"] = min_component_area
     if detail > 0:
         info["detail"] = float(detail)
     if flat.any():

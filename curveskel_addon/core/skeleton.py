@@ -87,18 +87,22 @@ class Skeleton:
         return np.bincount(self.bones.ravel(), minlength=self.n_joints)
 
     def summary(self) -> dict:
-        """Figures a user wants to see after a run: joints, bones, components, E0 (the first
-        approximation's E), E_fit (after the fit of E), E (of the returned skeleton),
+        """Figures a user wants to see after a run: joints, bones, components, J0 and J (the
+        objective of the first stage and of the returned skeleton), E0 (the first
+        approximation's paper E), E_fit (after the last fit), E (of the returned skeleton),
         iterations, seconds."""
         e0 = self.energy[0] if self.energy else float("nan")
         e1 = self.energy[-1] if self.energy else float("nan")
-        # the E the fit reached: the stages after it fit the radii to the silhouette (and move
-        # joints to their sections' centres), which E does not measure, so E can rise again
-        fit = [st["energy"] for st in self.meta.get("stages", []) if st.get("stage") == "fit"]
+        stages = self.meta.get("stages", [])
+        fit = [st.get("terms", {}).get("E", st.get("energy")) for st in stages
+               if st.get("stage") == "fit"]
+        fit = [f for f in fit if f is not None]
         return {
             "joints": self.n_joints,
             "bones": self.n_bones,
             "components": int(self.meta.get("components", 1)),
+            "J0": float(stages[0]["J"]) if stages and "J" in stages[0] else float("nan"),
+            "J": float(self.meta.get("J", float("nan"))),
             "E0": e0,
             "E_fit": float(fit[-1]) if fit else e1,
             "E": e1,
