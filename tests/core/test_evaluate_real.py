@@ -13,7 +13,7 @@ from curveskel_addon.measure.evaluation import HEAT_RANGE
 from curveskel_addon.measure.quality import shape_measures
 from curveskel_addon.mesh_files import read_mesh
 
-from conftest import SHARED_MESHES
+from skeletons import SHARED as SHARED_MESHES
 from outside_skeletons import hand_without_a_finger
 
 REFERENCE = SHARED_MESHES.parent / "reference"
