@@ -320,13 +320,17 @@ def test_a_dask_worker_killed_mid_batch_has_its_task_retried_elsewhere(library, 
     assert temp_files(out) == []
 
 
-class _StopAfterAWhile:
-    """A progress stream that, at its first line, waits ``seconds`` (the cluster goes on
-    finishing assets meanwhile) and then raises KeyboardInterrupt: Ctrl-C with rows finished
-    but not yet taken from the cluster."""
+class _StopWhenMoreAreWritten:
+    """A progress stream that, at its first line, waits until ``more`` further skeletons are
+    on disk (the cluster goes on finishing assets meanwhile) and then raises
+    KeyboardInterrupt: Ctrl-C with rows finished but not yet taken from the cluster. It waits
+    on the files, not on a clock, so a fast or a slow machine stops at the same point."""
 
-    def __init__(self, seconds: float):
-        self.seconds, self.fired = seconds, False
+    def __init__(self, out: Path, more: int = 1, limit: float = 300.0):
+        self.out, self.more, self.limit, self.fired = out, more, limit, False
+
+    def _written(self) -> int:
+        return sum(1 for p in self.out.rglob("*.json") if ".curveskel-batch" not in p.parts)
 
     def isatty(self) -> bool:
         return False
@@ -334,7 +338,9 @@ class _StopAfterAWhile:
     def write(self, text: str) -> None:
         if not self.fired:
             self.fired = True
-            time.sleep(self.seconds)
+            start, t0 = self._written(), time.monotonic()
+            while self._written() < start + self.more and time.monotonic() - t0 < self.limit:
+                time.sleep(0.02)
             raise KeyboardInterrupt
 
     def flush(self) -> None:
@@ -354,7 +360,7 @@ def test_a_dask_batch_stopped_keeps_a_row_for_every_skeleton_written(library, re
             distributed.Client(cluster) as client:
         with pytest.raises(BatchInterrupted) as info:
             run(good, out, client=client, timeout=TIMEOUT, params=METHOD, progress=True,
-                stream=_StopAfterAWhile(5.0))
+                stream=_StopWhenMoreAreWritten(out))
     done = info.value.results
     written = {p: p.stat().st_mtime_ns for p in out.rglob("*.json") if ".curveskel-batch" not in p.parts}
     assert len(written) >= 2 and len(done) < N             # more than the first row, not all
