@@ -42,7 +42,8 @@ mesh_components, mesh_genus, mesh_boundaries, mesh_euler, mesh_nonmanifold_edges
     ``g = (2 - chi - b) / 2`` with ``b`` boundary loops; genus and boundaries are summed.
     Edges with more than two faces are counted (the genus formula assumes none).
 topology_match
-    ``skeleton_components == mesh_components and skeleton_cycles == mesh_genus``.
+    ``skeleton_components == mesh_components and skeleton_cycles == mesh_genus`` (for a mesh of
+    separate parts joined into figures, the figures' trees and the loops their seams close).
 joints, bones, leaves, branch_points
     Sizes; leaves have degree 1, branch points degree >= 3.
 D, measure_seconds
@@ -785,8 +786,14 @@ def quality(V, F, skeleton, *, n_samples=20000, seed=0, bone_samples=10, referen
     mt = mesh_topology(V, F)
     out.update(st)
     out.update(mt)
-    out["topology_match"] = bool(st["skeleton_components"] == mt["mesh_components"]
-                                 and st["skeleton_cycles"] == mt["mesh_genus"])
+    # separate parts joined into figures count as one each (issue 31), and a seam between
+    # parts already joined closes a loop the parts' own genus does not have
+    parts = (getattr(skeleton, "meta", None) or {}).get("parts")
+    want_c = int(parts["trees"]) if parts and "trees" in parts else mt["mesh_components"]
+    want_g = mt["mesh_genus"] + (int(parts.get("loops", 0)) if parts else 0)
+    out["expected_components"], out["expected_cycles"] = want_c, want_g
+    out["topology_match"] = bool(st["skeleton_components"] == want_c
+                                 and st["skeleton_cycles"] == want_g)
     out["joints"] = int(len(joints))
     out["bones"] = int(len(bones))
     secs["topology"] = time.perf_counter() - t0

@@ -473,3 +473,17 @@ def test_part_radii_of_a_ball_and_a_tube():
     area = 2 * np.pi * 0.5 * 10 + 4 * np.pi * 0.25
     tube_exact = 2 * volume / area
     assert abs(r[1] - tube_exact) < 0.01
+
+
+def test_topology_measures_count_joined_parts_as_one(six_part):
+    """Issue 31: "Topology measures count joined parts as one": the six overlapping parts are
+    one figure, so one tree is the expected topology (the separate skeletons are not)."""
+    from curveskel_addon.measure.quality import quality
+
+    V, F, part, sk = six_part
+    q = quality(V, F, sk, n_samples=2000)
+    assert q["mesh_components"] == 6 and q["expected_components"] == 1
+    assert q["skeleton_components"] == 1 and q["topology_match"]
+    apart = skeletonize(V, F, separate_parts=True)
+    q2 = quality(V, F, apart, n_samples=2000)
+    assert q2["expected_components"] == 6 == q2["skeleton_components"] and q2["topology_match"]
